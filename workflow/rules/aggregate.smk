@@ -1,0 +1,1 @@
+# rules: aggregate (to be written)

@@ -1,0 +1,1 @@
+# rules: features (to be written)

@@ -1,0 +1,1 @@
+# rules: fit (to be written)

@@ -1,0 +1,1 @@
+# rules: mocap (to be written)
