@@ -1,0 +1,203 @@
+"""Reference regressors: k-nearest neighbours and ridge regression, with the baselines' contract.
+
+Both are thin wrappers of scikit-learn (``KNeighborsRegressor``, ``Ridge``) so that they are honest,
+well-known references. They share the contract of the other baselines of bsrbench: ``fit(X, Y)`` with a
+2-D multi-output target (or a 1-D target), ``predict(X)``; hyper-parameters are validated in ``fit`` with an
+error naming the parameter, its value and the allowed range.
+
+The module also holds the small validation helpers shared by the baselines (``rvm``, ``tgp``, ``sr``,
+``ddl``).
+"""
+
+import numbers
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.linear_model import Ridge
+from sklearn.neighbors import KNeighborsRegressor
+from sklearn.preprocessing import StandardScaler
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from ..errors import InputError
+
+# --------------------------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _check_number(name, value, *, low=None, high=None, low_open=False, integer=False, none_ok=False):
+    """Validate a scalar hyper-parameter; raise ``InputError`` naming it, its value and the allowed range."""
+    if value is None and none_ok:
+        return None
+    kind = numbers.Integral if integer else numbers.Real
+    ok = isinstance(value, kind) and not isinstance(value, bool)
+    if ok and not integer:
+        ok = bool(np.isfinite(value))
+    if ok and low is not None:
+        ok = value > low if low_open else value >= low
+    if ok and high is not None:
+        ok = value <= high
+    if not ok:
+        lo = "-inf" if low is None else repr(low)
+        hi = "inf" if high is None else repr(high)
+        br = "(" if (low_open or low is None) else "["
+        what = "an integer" if integer else "a finite real number"
+        extra = " or None" if none_ok else ""
+        raise InputError(f"{name} must be {what} in {br}{lo}, {hi}]{extra}; got {value!r}")
+    return value
+
+
+def _check_choice(name, value, choices):
+    if value not in choices:
+        raise InputError(f"{name} must be one of {sorted(choices)}; got {value!r}")
+    return value
+
+
+def _validate_fit(est, X, Y, min_samples=1):
+    """Validate training data; return (X, Y as 2-D float arrays). Records whether the target was 1-D."""
+    X, Y = validate_data(est, X, Y, multi_output=True, y_numeric=True, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    est._y_was_1d = Y.ndim == 1
+    if Y.ndim == 1:
+        Y = Y[:, None]
+    if X.shape[0] < min_samples:
+        raise InputError(
+            f"{type(est).__name__} needs at least {min_samples} training rows; got n_samples = {X.shape[0]}"
+        )
+    return X, Y
+
+
+def _validate_predict(est, X):
+    check_is_fitted(est)
+    return validate_data(est, X, reset=False, dtype=np.float64)
+
+
+def _format_output(est, P):
+    return P[:, 0] if getattr(est, "_y_was_1d", False) else P
+
+
+def _sq_dists(A, B):
+    """Squared Euclidean distances between the rows of A and B (clipped at 0)."""
+    d = (A * A).sum(1)[:, None] + (B * B).sum(1)[None, :] - 2.0 * (A @ B.T)
+    return np.maximum(d, 0.0)
+
+
+def _median_distance(A):
+    """Median Euclidean distance between distinct rows of A (1.0 if all rows coincide or n < 2)."""
+    n = A.shape[0]
+    if n < 2:
+        return 1.0
+    d = np.sqrt(_sq_dists(A, A)[np.triu_indices(n, 1)])
+    m = float(np.median(d))
+    if not m > 0:
+        m = float(d.max()) if d.max() > 0 else 1.0
+    return m
+
+
+def _regressor_tags(tags):
+    tags.target_tags.required = True
+    tags.target_tags.single_output = True
+    tags.target_tags.multi_output = True
+    return tags
+
+
+# --------------------------------------------------------------------------------------------------------
+
+
+class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
+    """k-nearest-neighbour regression (Euclidean distance on the features).
+
+    With ``n_neighbors=1`` the pose of the closest training frame is returned: a memory-based reference that
+    every learned method must beat. ``n_neighbors`` only affects prediction, so it can be changed per call
+    (``predict(X, n_neighbors=k)``) and cross-validated from one fit per fold (see
+    :func:`bsrbench.tuning.tune`).
+
+    Parameters
+    ----------
+    n_neighbors : int >= 1
+        Number of neighbours averaged; must not exceed the number of training rows.
+    weights : {"uniform", "distance"}
+        Uniform average or inverse-distance weighting (as in ``sklearn.neighbors.KNeighborsRegressor``).
+    """
+
+    _predict_time_params = ("n_neighbors",)
+
+    def __init__(self, n_neighbors=1, weights="uniform"):
+        self.n_neighbors = n_neighbors
+        self.weights = weights
+
+    def __sklearn_tags__(self):
+        return _regressor_tags(super().__sklearn_tags__())
+
+    def _check_k(self, k, n):
+        _check_number("n_neighbors", k, low=1, integer=True)
+        if k > n:
+            raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
+        return int(k)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        _check_choice("weights", self.weights, {"uniform", "distance"})
+        self._check_k(self.n_neighbors, X.shape[0])
+        self.n_outputs_ = Y.shape[1]
+        # one index for any k: the wrapped model is queried with the k of the call
+        self.knn_ = KNeighborsRegressor(n_neighbors=1, weights=self.weights).fit(X, Y)
+        self.Y_train_ = Y
+        return self
+
+    def predict(self, X, n_neighbors=None):
+        """Predict; ``n_neighbors`` overrides the fitted setting for this call."""
+        X = _validate_predict(self, X)
+        k = self._check_k(self.n_neighbors if n_neighbors is None else n_neighbors, self.Y_train_.shape[0])
+        dist, ind = self.knn_.kneighbors(X, n_neighbors=k)
+        Yn = self.Y_train_[ind]  # (n, k, d)
+        if self.weights == "uniform":
+            P = Yn.mean(axis=1)
+        else:
+            with np.errstate(divide="ignore"):
+                w = 1.0 / dist
+            exact = ~np.isfinite(w)
+            rows = exact.any(axis=1)
+            w[rows] = exact[rows].astype(float)  # an exact match gets all the weight
+            P = np.einsum("nk,nkd->nd", w, Yn) / w.sum(axis=1, keepdims=True)
+        return _format_output(self, P)
+
+
+class RidgeRegressor(RegressorMixin, BaseEstimator):
+    """Linear ridge regression of the pose on the features (``sklearn.linear_model.Ridge``).
+
+    Parameters
+    ----------
+    alpha : float >= 0
+        L2 penalty (on the standardized features if ``standardize``).
+    standardize : bool
+        Standardize each feature to zero mean and unit variance before the regression.
+    """
+
+    def __init__(self, alpha=1.0, standardize=True):
+        self.alpha = alpha
+        self.standardize = standardize
+
+    def __sklearn_tags__(self):
+        return _regressor_tags(super().__sklearn_tags__())
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        _check_number("alpha", self.alpha, low=0)
+        _check_choice("standardize", self.standardize, {True, False})
+        self.n_outputs_ = Y.shape[1]
+        self.scaler_ = StandardScaler(with_std=True).fit(X) if self.standardize else None
+        Xs = self.scaler_.transform(X) if self.standardize else X
+        self.ridge_ = Ridge(alpha=float(self.alpha)).fit(Xs, Y)
+        return self
+
+    def predict(self, X):
+        X = _validate_predict(self, X)
+        Xs = self.scaler_.transform(X) if self.standardize else X
+        return _format_output(self, self.ridge_.predict(Xs))
+
+
+DEFAULT_GRID = {
+    "NearestNeighbourRegressor": {"n_neighbors": [1, 2, 3, 5, 8], "weights": ["uniform", "distance"]},
+    "RidgeRegressor": {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]},
+}
+"""Hyper-parameter grids used by the study for the two references (keyed by class name)."""
