@@ -1,0 +1,198 @@
+"""Twin Gaussian processes (TGP) for structured prediction, KL-divergence form.
+
+Bo & Sminchisescu, "Twin Gaussian Processes for Structured Prediction", IJCV 87 (2010) 28-52, Section 3
+(TGP with the Kullback-Leibler divergence). Gaussian kernels on inputs and outputs,
+``K_X(x, x') = exp(-||x - x'||^2 / (2 w_x^2)) + lambda_x [x = x']`` and likewise ``K_Y`` with
+``(w_y, lambda_y)``. For a test input x, with ``k_x`` its kernel vector to the training inputs,
+``u = (K_X + lambda_x I)^-1 k_x`` and ``eta_x = K_X(x, x) - k_x^T u`` (the input GP's predictive variance),
+the prediction minimises the divergence between the output GP and the input GP::
+
+    L(y) = K_Y(y, y) - 2 k_y(y)^T u - eta_x log( K_Y(y, y) - k_y(y)^T (K_Y + lambda_y I)^-1 k_y(y) )
+
+with ``K_Y(y, y) = 1 + lambda_y`` constant for the Gaussian kernel. Its gradient is analytic: with
+``w = -2 u + 2 eta_x A k_y / q`` (``A = (K_Y + lambda_y I)^-1``, ``q`` the log's argument),
+``dL/dy = -(1 / w_y^2) sum_i w_i k_{y,i} (y - y_i)``. Each test pose is optimised with
+``scipy.optimize.minimize(method="L-BFGS-B")``, started at the 1-NN or ridge prediction.
+
+Everything that does not depend on the test pose is computed before the per-point optimisation:
+the factorisations of the training kernel matrices (in ``fit``), and ``u``/``eta_x`` of ALL test points by
+one matrix solve. The kNN-restricted variant (``n_neighbors=k``, as in the authors' code for speed) uses,
+for each test point, only the k training pairs nearest in feature space; its k x k matrices are factorised
+for all test points at once by batched LAPACK calls.
+"""
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+from scipy.optimize import minimize
+from sklearn.base import BaseEstimator, RegressorMixin
+
+from ..errors import InputError
+from .reference import (
+    RidgeRegressor,
+    _check_choice,
+    _check_number,
+    _format_output,
+    _median_distance,
+    _regressor_tags,
+    _sq_dists,
+    _validate_fit,
+    _validate_predict,
+)
+
+_FROM_PARAMS = object()
+
+
+def _kld_objective(y, Ytr, Ainv, u, eta, c, inv_w2):
+    """TGP KL objective and its gradient at the pose ``y`` (Bo & Sminchisescu 2010).
+
+    Ytr (k, d) training poses; Ainv (k, k) inverse of the regularized output kernel matrix; u (k,);
+    eta (scalar); c = K_Y(y, y) = 1 + lambda_y; inv_w2 = 1 / w_y^2.
+    """
+    diff = y[None, :] - Ytr
+    ky = np.exp(-0.5 * inv_w2 * np.einsum("ij,ij->i", diff, diff))
+    Aky = Ainv @ ky
+    q = c - ky @ Aky
+    if q <= 0:  # only by round-off: the output GP's variance is >= lambda_y > 0
+        q = 1e-300
+    f = c - 2.0 * (ky @ u) - eta * np.log(q)
+    w = (-2.0 * u + (2.0 * eta / q) * Aky) * ky
+    grad = -inv_w2 * (w.sum() * y - w @ Ytr)
+    return f, grad
+
+
+class TGP(RegressorMixin, BaseEstimator):
+    """Twin Gaussian process regression (KL-divergence form, Bo & Sminchisescu 2010).
+
+    Parameters
+    ----------
+    width_scale_x, width_scale_y : float > 0
+        Kernel widths as multiples of the median pairwise Euclidean distance of the training features
+        (resp. poses); the widths used are stored as ``width_x_`` and ``width_y_``.
+    lambda_x, lambda_y : float > 0
+        Regularizers added to the diagonals of the input and output kernel matrices.
+    n_neighbors : int >= 1 or None
+        None: use all training pairs; k: for each test point only the k nearest training pairs (in
+        feature space). Only acts at prediction time (``predict(X, n_neighbors=...)``).
+    init : {"knn", "ridge"}
+        Start of the optimisation: the pose of the nearest training feature, or a ridge regression
+        prediction (``RidgeRegressor(alpha=1.0)`` on standardized features). Only acts at prediction time.
+    max_iter : int >= 1
+        Maximum L-BFGS-B iterations per test point.
+    tol : float > 0
+        L-BFGS-B ``ftol`` and ``gtol``.
+    """
+
+    _predict_time_params = ("n_neighbors", "init")
+
+    def __init__(
+        self,
+        width_scale_x=1.0,
+        width_scale_y=1.0,
+        lambda_x=1e-3,
+        lambda_y=1e-3,
+        n_neighbors=None,
+        init="knn",
+        max_iter=100,
+        tol=1e-6,
+    ):
+        self.width_scale_x = width_scale_x
+        self.width_scale_y = width_scale_y
+        self.lambda_x = lambda_x
+        self.lambda_y = lambda_y
+        self.n_neighbors = n_neighbors
+        self.init = init
+        self.max_iter = max_iter
+        self.tol = tol
+
+    def __sklearn_tags__(self):
+        return _regressor_tags(super().__sklearn_tags__())
+
+    def _check_k(self, k, n):
+        _check_number("n_neighbors", k, low=1, integer=True, none_ok=True)
+        if k is not None and k > n:
+            raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
+        return None if k is None else int(k)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        for name in ("width_scale_x", "width_scale_y", "lambda_x", "lambda_y", "tol"):
+            _check_number(name, getattr(self, name), low=0, low_open=True)
+        _check_number("max_iter", self.max_iter, low=1, integer=True)
+        _check_choice("init", self.init, {"knn", "ridge"})
+        n = X.shape[0]
+        self._check_k(self.n_neighbors, n)
+        self.n_outputs_ = Y.shape[1]
+        self.width_x_ = float(self.width_scale_x) * _median_distance(X)
+        self.width_y_ = float(self.width_scale_y) * _median_distance(Y)
+        self.X_train_ = X
+        self.Y_train_ = Y
+        # regularized training kernel matrices (independent of the test points)
+        self.Kx_ = np.exp(-_sq_dists(X, X) / (2.0 * self.width_x_**2)) + self.lambda_x * np.eye(n)
+        self.Ky_ = np.exp(-_sq_dists(Y, Y) / (2.0 * self.width_y_**2)) + self.lambda_y * np.eye(n)
+        self._Kx_cho = cho_factor(self.Kx_, lower=True)
+        Ky_cho = cho_factor(self.Ky_, lower=True)
+        self.Ky_inv_ = cho_solve(Ky_cho, np.eye(n))
+        self.ridge_ = RidgeRegressor(alpha=1.0).fit(X, Y)
+        return self
+
+    def predict(self, X, n_neighbors=_FROM_PARAMS, init=_FROM_PARAMS):
+        """Predict poses; ``n_neighbors`` and ``init`` override the fitted settings for this call."""
+        X = _validate_predict(self, X)
+        n = self.X_train_.shape[0]
+        k = self._check_k(self.n_neighbors if n_neighbors is _FROM_PARAMS else n_neighbors, n)
+        init = _check_choice("init", self.init if init is _FROM_PARAMS else init, {"knn", "ridge"})
+        d2 = _sq_dists(X, self.X_train_)
+        kx = np.exp(-d2 / (2.0 * self.width_x_**2))
+        if init == "ridge":
+            Y0 = np.asarray(self.ridge_.predict(X), dtype=float).reshape(X.shape[0], -1)
+        else:
+            Y0 = self.Y_train_[np.argmin(d2, axis=1)]
+        cx = 1.0 + self.lambda_x
+        if k is None:
+            U = cho_solve(self._Kx_cho, kx.T).T  # (m, n): all test points in one solve
+            eta = cx - np.einsum("ij,ij->i", kx, U)
+            nbr = None
+            Ainv = None
+        else:
+            nbr = np.argsort(d2, axis=1, kind="stable")[:, :k]  # (m, k)
+            kxs = np.take_along_axis(kx, nbr, axis=1)
+            Kxs = self.Kx_[nbr[:, :, None], nbr[:, None, :]]  # (m, k, k)
+            U = np.linalg.solve(Kxs, kxs[:, :, None])[:, :, 0]
+            eta = cx - np.einsum("ij,ij->i", kxs, U)
+            Ainv = np.linalg.inv(self.Ky_[nbr[:, :, None], nbr[:, None, :]])  # (m, k, k)
+        eta = np.maximum(eta, 0.0)
+        return _format_output(self, self._optimise(Y0, U, eta, nbr, Ainv))
+
+    def _optimise(self, Y0, U, eta, nbr, Ainv):
+        """The per-test-point L-BFGS-B minimisation (the only per-point loop).
+
+        Poses are optimised in units of the output kernel width (``z = y / w_y``), which leaves the
+        minimiser unchanged and makes the tolerances independent of the units of the poses.
+        """
+        c = 1.0 + self.lambda_y
+        s = self.width_y_
+        Z = self.Y_train_ / s
+        opts = {"maxiter": int(self.max_iter), "ftol": float(self.tol), "gtol": float(self.tol)}
+        out = np.empty_like(Y0)
+        for i in range(Y0.shape[0]):
+            if nbr is None:
+                Zi, Ai = Z, self.Ky_inv_
+            else:
+                Zi, Ai = Z[nbr[i]], Ainv[i]
+            res = minimize(
+                _kld_objective,
+                Y0[i] / s,
+                args=(Zi, Ai, U[i], eta[i], c, 1.0),
+                jac=True,
+                method="L-BFGS-B",
+                options=opts,
+            )
+            out[i] = res.x * s if np.all(np.isfinite(res.x)) else Y0[i]
+        return out
+
+DEFAULT_GRID = {
+    "width_scale_x": [1.0, 2.0, 4.0],
+    "width_scale_y": [0.25, 0.5, 1.0],
+}
+"""Grid of the study: input and output kernel widths (multiples of the median pairwise distances);
+``lambda_x = lambda_y = 1e-3``, full training set, 1-NN start."""
