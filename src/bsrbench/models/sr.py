@@ -1,0 +1,145 @@
+"""Sparse-representation (SR) pose regression: a test feature as a sparse combination of training features.
+
+Following Huang & Yang, "Estimating human pose from occluded images" (ACCV 2009), the pose-estimation use
+of the sparse representation of Wright et al. ("Robust face recognition via sparse representation",
+IEEE PAMI 31(2), 2009): the training features, normalized to unit L2 norm, are the columns of an
+over-complete dictionary; a test feature x is coded by the L1-regularized least squares
+
+    c = argmin_c  1/(2 n_features) ||x - X_train^T c||^2 + alpha ||c||_1      (c >= 0 if ``positive``)
+
+and the pose is the same combination of the training poses, ``y = Y_train^T c`` (divided by ``sum(c)``
+when ``normalize_coef``, i.e. an affine, for positive codes convex, combination of training poses, which
+keeps the scale of angle vectors; without it the L1 shrinkage pulls every pose towards 0).
+
+All test points are coded in ONE multi-target scikit-learn fit: ``Lasso`` (coordinate descent, precomputed
+Gram matrix) or ``LassoLars`` with ``X_train^T`` as design and the test features as the targets.
+If a code is all zeros (``alpha`` above the largest correlation) the pose of the training feature with
+the largest correlation is returned, which is the limit of the L1 path as alpha decreases to that value.
+"""
+
+import warnings
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.linear_model import Lasso, LassoLars
+
+from .reference import (
+    _check_choice,
+    _check_number,
+    _format_output,
+    _regressor_tags,
+    _validate_fit,
+    _validate_predict,
+)
+
+
+def _normalize_rows(X, how):
+    if how == "none":
+        return X
+    norms = np.linalg.norm(X, axis=1, keepdims=True)
+    return X / np.where(norms > 0, norms, 1.0)
+
+
+def _sparse_codes(D, B, alpha, positive, solver, max_iter, tol):
+    """Codes C (m, n_atoms) of the rows of B (m, n_features) on the rows of D (n_atoms, n_features)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        if solver == "lasso":
+            model = Lasso(
+                alpha=alpha,
+                fit_intercept=False,
+                positive=positive,
+                precompute=D @ D.T,
+                max_iter=max_iter,
+                tol=tol,
+            )
+        else:
+            model = LassoLars(alpha=alpha, fit_intercept=False, positive=positive, max_iter=max_iter)
+        model.fit(D.T, B.T)
+    C = np.asarray(model.coef_, dtype=float)
+    return C.reshape(B.shape[0], D.shape[0])
+
+
+def _decode(C, Y, D, B, normalize_coef):
+    """Poses from codes C (m, n) on training poses Y (n, d); zero codes fall back to the best-correlated row."""
+    s = C.sum(axis=1)
+    if normalize_coef:
+        ok = np.abs(s) > 1e-12
+    else:
+        ok = np.any(C != 0, axis=1)
+    P = np.empty((C.shape[0], Y.shape[1]))
+    P[ok] = C[ok] @ Y
+    if normalize_coef:
+        P[ok] /= s[ok, None]
+    if not ok.all():
+        P[~ok] = Y[np.argmax(B[~ok] @ D.T, axis=1)]
+    return P
+
+
+class SR(RegressorMixin, BaseEstimator):
+    """Sparse-representation pose regression (Huang & Yang 2009).
+
+    Parameters
+    ----------
+    alpha : float > 0
+        L1 penalty of the code (scikit-learn's Lasso scaling, ``1/(2 n_features)`` on the squared error).
+    positive : bool
+        Non-negative codes.
+    normalize : {"l2", "none"}
+        Scale each feature vector (training and test) to unit L2 norm before coding.
+    normalize_coef : bool
+        Divide the combination of training poses by the sum of the code.
+    solver : {"lasso", "lars"}
+        Coordinate descent (``sklearn.linear_model.Lasso``) or LARS (``LassoLars``).
+    max_iter : int >= 1
+        Iterations of the solver.
+    tol : float > 0
+        Tolerance of coordinate descent.
+    """
+
+    _predict_time_params = ("alpha",)
+
+    def __init__(
+        self, alpha=1e-4, positive=True, normalize="l2", normalize_coef=True, solver="lasso", max_iter=2000, tol=1e-6
+    ):
+        self.alpha = alpha
+        self.positive = positive
+        self.normalize = normalize
+        self.normalize_coef = normalize_coef
+        self.solver = solver
+        self.max_iter = max_iter
+        self.tol = tol
+
+    def __sklearn_tags__(self):
+        return _regressor_tags(super().__sklearn_tags__())
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        _check_number("alpha", self.alpha, low=0, low_open=True)
+        _check_choice("positive", self.positive, {True, False})
+        _check_choice("normalize", self.normalize, {"l2", "none"})
+        _check_choice("normalize_coef", self.normalize_coef, {True, False})
+        _check_choice("solver", self.solver, {"lasso", "lars"})
+        _check_number("max_iter", self.max_iter, low=1, integer=True)
+        _check_number("tol", self.tol, low=0, low_open=True)
+        self.n_outputs_ = Y.shape[1]
+        self.dictionary_ = _normalize_rows(X, self.normalize)
+        self.Y_train_ = Y
+        return self
+
+    def sparse_code(self, X, alpha=None):
+        """Codes (n_test, n_train) of the test features on the training features."""
+        X = _validate_predict(self, X)
+        a = self.alpha if alpha is None else _check_number("alpha", alpha, low=0, low_open=True)
+        B = _normalize_rows(X, self.normalize)
+        return _sparse_codes(self.dictionary_, B, a, self.positive, self.solver, int(self.max_iter), self.tol), B
+
+    def predict(self, X, alpha=None):
+        """Predict poses; ``alpha`` overrides the fitted penalty for this call."""
+        C, B = self.sparse_code(X, alpha=alpha)
+        return _format_output(self, _decode(C, self.Y_train_, self.dictionary_, B, self.normalize_coef))
+
+
+DEFAULT_GRID = {"alpha": [3e-4, 1e-3, 3e-3, 6e-3, 9e-3]}
+"""Grid of the study: the L1 penalty (unit-norm features, so the code is all zero above alpha ~ 1/n_features)."""
