@@ -1,1 +1,61 @@
-# rules: features (to be written)
+# Features: the codebook of shape contexts, rendered mocap features with previews, and verified .mat features.
+
+
+rule features_codebook:
+    input:
+        trials=codebook_files(),
+    output:
+        "results/features/codebook.npz",
+    log:
+        "logs/features/codebook.log",
+    benchmark:
+        "logs/features/codebook.benchmark.tsv"
+    params:
+        render=render_params(),
+        n_points=lookup(dpath="features/shape_context/n_points", within=config),
+        frames_per_trial=lookup(dpath="features/codebook/frames_per_trial", within=config),
+        n_centres=lookup(dpath="features/codebook/n_centres", within=config),
+        drop_first_frame=lookup(dpath="features/codebook/drop_first_frame", within=config),
+        checksums=lookup(dpath="features/codebook/checksums", within=config),
+        seed=lookup(dpath="features/seed", within=config),
+    script:
+        "../scripts/features_codebook.py"
+
+
+rule features_mocap:
+    input:
+        motion="results/mocap/{source}/{activity}.npz",
+        codebook="results/features/codebook.npz",
+    output:
+        features="results/features/{source}/{activity}.npz",
+        preview="results/features/{source}/{activity}.preview.png",
+    log:
+        "logs/features/{source}/{activity}.log",
+    benchmark:
+        "logs/features/{source}/{activity}.benchmark.tsv"
+    params:
+        render=render_params(),
+        n_points=lookup(dpath="features/shape_context/n_points", within=config),
+        soft=lookup(dpath="features/histogram/soft", within=config),
+        preview_frames=lookup(dpath="features/preview_frames", within=config),
+        seed=lookup(dpath="features/seed", within=config),
+        meta=features_meta,
+    wildcard_constraints:
+        source=motion_source_regex(),
+    script:
+        "../scripts/features_mocap.py"
+
+
+rule features_mat:
+    input:
+        mat=mat_input,
+    output:
+        "results/features/{source}/{activity}.npz",
+    log:
+        "logs/features/{source}/{activity}.log",
+    params:
+        options=mat_params,
+    wildcard_constraints:
+        source=mat_source_regex(),
+    script:
+        "../scripts/features_mat.py"

@@ -1,1 +1,51 @@
-# rules: mocap (to be written)
+# Motion capture: CMU trial download (ASF/AMC) and pose extraction (positions + 57 angles of the chosen frames).
+
+
+rule download_cmu_asf:
+    output:
+        asf=f"{download_dir()}/{{subject}}/{{subject}}.asf",
+        sha256=f"{download_dir()}/{{subject}}/{{subject}}.asf.sha256",
+    log:
+        "logs/download/{subject}.asf.log",
+    params:
+        base_url=lookup(dpath="download/base_url", within=config),
+        expected=lambda wildcards: download_checksum(f"{wildcards.subject}.asf"),
+    wildcard_constraints:
+        subject=r"\d+",
+    script:
+        "../scripts/download_cmu_asf.py"
+
+
+rule download_cmu_amc:
+    input:
+        asf=f"{download_dir()}/{{subject}}/{{subject}}.asf",
+    output:
+        amc=f"{download_dir()}/{{subject}}/{{subject}}_{{trial}}.amc",
+        sha256=f"{download_dir()}/{{subject}}/{{subject}}_{{trial}}.amc.sha256",
+    log:
+        "logs/download/{subject}_{trial}.amc.log",
+    params:
+        base_url=lookup(dpath="download/base_url", within=config),
+        expected=lambda wildcards: download_checksum(f"{wildcards.subject}_{wildcards.trial}.amc"),
+    wildcard_constraints:
+        subject=r"\d+",
+        trial=r"\d+",
+    script:
+        "../scripts/download_cmu_amc.py"
+
+
+rule mocap_poses:
+    input:
+        unpack(motion_inputs),
+    output:
+        "results/mocap/{source}/{activity}.npz",
+    log:
+        "logs/mocap/{source}/{activity}.log",
+    benchmark:
+        "logs/mocap/{source}/{activity}.benchmark.tsv"
+    params:
+        options=motion_params,
+    wildcard_constraints:
+        source=motion_source_regex(),
+    script:
+        "../scripts/mocap_poses.py"

@@ -1,0 +1,11 @@
+"""Load a verified .mat feature file (X, Y) and save it as a features file."""
+
+import sys
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.datasets import build_mat_features  # noqa: E402
+
+sm = snakemake  # noqa: F821
+fs = build_mat_features(sm.input.mat, sm.output[0], **sm.params.options)
+print(f"{sm.output[0]}: X {fs.X.shape}, Y {fs.Y.shape}", file=sys.stderr)
