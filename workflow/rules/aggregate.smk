@@ -1,1 +1,19 @@
-# rules: aggregate (to be written)
+# One aggregate table of every fit job: the only input of every table, plot and finding.
+
+
+rule aggregate:
+    input:
+        fit_targets("json"),
+    output:
+        report(
+            "results/aggregate/results.csv",
+            category="Results",
+            caption="../report/results.rst",
+        ),
+    log:
+        "logs/aggregate/aggregate.log",
+    benchmark:
+        "results/benchmarks/aggregate/aggregate.tsv"
+    threads: 1
+    script:
+        "../scripts/aggregate.py"

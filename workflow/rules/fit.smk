@@ -1,1 +1,53 @@
-# rules: fit (to be written)
+# Fit jobs: one per (protocol, source, activity, method, n_train, seed); CV jobs choose hyper-parameters.
+
+
+rule cv:
+    input:
+        features="results/features/{source}/{activity}.npz",
+    output:
+        "results/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
+    log:
+        "logs/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+    benchmark:
+        "results/benchmarks/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.tsv"
+    params:
+        estimator=lambda w: method_setting(w.method)["estimator"],
+        fixed=lambda w: method_setting(w.method).get("params", {}),
+        grid=method_grid,
+        folds=config["cv"]["folds"],
+        pose_transform=config["pose_transform"],
+        min_test=config["min_test"],
+        gap=config["gap"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=120,
+    script:
+        "../scripts/cv_job.py"
+
+
+rule fit:
+    input:
+        features="results/features/{source}/{activity}.npz",
+        cv=cv_input,
+    output:
+        row="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
+        predictions="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.npz",
+    log:
+        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+    benchmark:
+        "results/benchmarks/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.tsv"
+    params:
+        estimator=lambda w: method_setting(w.method)["estimator"],
+        fixed=lambda w: method_setting(w.method).get("params", {}),
+        cv_mode=config["cv"]["mode"],
+        paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
+        pose_transform=config["pose_transform"],
+        min_test=config["min_test"],
+        gap=config["gap"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    script:
+        "../scripts/fit_job.py"

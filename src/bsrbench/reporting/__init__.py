@@ -1,0 +1,1 @@
+"""Tables, figures and the PDF report of the study, all computed from the aggregate result table."""

@@ -1,0 +1,237 @@
+"""The aggregate result table and the LaTeX tables in the layout of the paper's Tables I and II.
+
+Every table, plot and finding is computed from the aggregate table (``results/aggregate/results.csv``, one
+row per fit job, built by :func:`aggregate_rows`). Tables contain no timings, so two runs of the same
+configuration give identical tables.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DataFileError, InputError
+from ..io import atomic_path
+
+#: The paper's activities per table, spelled as in the paper.
+PAPER_TABLES = {
+    "I": ["Acrobatics", "Navigate", "Golf"],
+    "II": ["Throw and catch football", "Michael jackson styled motions", "Kick soccer ball", "Run", "Walk"],
+}
+#: Methods of the paper's tables (their labels), in the paper's column order.
+PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
+KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
+
+
+def paper_key(name):
+    """Case-insensitive key of a paper activity name (the paper writes "kick soccer ball" and "Run")."""
+    return " ".join(str(name).lower().split()) if isinstance(name, str) and name.strip() else ""
+
+
+def activity_label(activity, paper_activity=None):
+    """The paper's name of an activity if it has one, else the identifier, capitalised."""
+    if isinstance(paper_activity, str) and paper_activity.strip():
+        return paper_activity
+    return str(activity).replace("_", " ").capitalize()
+
+
+# ------------------------------------------------------------------------------------------------ aggregate
+def aggregate_rows(rows):
+    """One tidy DataFrame from result rows (dicts as written by :func:`bsrbench.study.run_job`).
+
+    Nested values (params, per-angle RMS, versions) become JSON strings. Rows are sorted by the key
+    columns; a duplicate key raises InputError.
+    """
+    rows = list(rows)
+    if not rows:
+        raise InputError("no result rows to aggregate")
+    flat = []
+    for r in rows:
+        missing = [k for k in KEY_COLUMNS + ["error"] if k not in r]
+        if missing:
+            raise InputError(f"result row lacks {missing}: {str(r)[:200]}")
+        flat.append(
+            {
+                k: (json.dumps(v, sort_keys=True) if isinstance(v, (dict, list)) else v)
+                for k, v in r.items()
+            }
+        )
+    df = pd.DataFrame(flat)
+    dup = df.duplicated(KEY_COLUMNS, keep=False)
+    if dup.any():
+        raise InputError(f"duplicate result rows for {df.loc[dup, KEY_COLUMNS].iloc[0].to_dict()}")
+    first = [c for c in KEY_COLUMNS + ["error", "coverage"] if c in df.columns]
+    df = df[first + sorted(c for c in df.columns if c not in first)]
+    return df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
+
+
+def aggregate_files(paths):
+    """Read result-row JSON files and aggregate them (see :func:`aggregate_rows`)."""
+    rows = []
+    for p in paths:
+        try:
+            rows.append(json.loads(Path(p).read_text()))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise DataFileError(p, f"cannot read result row ({exc})") from exc
+    return aggregate_rows(rows)
+
+
+def write_csv(df, path):
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=False)
+
+
+def read_results(path):
+    """Read the aggregate table and check its columns."""
+    try:
+        df = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(path, f"cannot read the aggregate table ({exc})") from exc
+    missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
+    if missing:
+        raise DataFileError(path, f"missing columns {missing}")
+    return df
+
+
+def read_paper_tables(path):
+    """The paper's Tables I and II as rows (table, activity, n_train, method, mean_deg, std_deg), keyed by our ids."""
+    try:
+        df = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError) as exc:
+        raise DataFileError(path, f"cannot read ({exc})") from exc
+    need = {"table", "activity", "n_train", "method", "mean_deg", "std_deg"}
+    if not need <= set(df.columns):
+        raise DataFileError(path, f"needs columns {sorted(need)}; has {list(df.columns)}")
+    known = {paper_key(a) for t in PAPER_TABLES.values() for a in t}
+    unknown = sorted(set(df["activity"]) - {a for a in df["activity"] if paper_key(a) in known})
+    if unknown:
+        raise DataFileError(path, f"unknown activities {unknown}; expected the paper's {sorted(known)}")
+    df = df.copy()
+    df["key"] = df["activity"].map(paper_key)
+    return df
+
+
+def summarize(df):
+    """Mean and sample std (ddof=1) of the error over seeds per (protocol, source, activity, method, n_train).
+
+    Carries ``paper_activity`` along and adds ``key`` (:func:`paper_key` of it) to match the paper's rows.
+    """
+    df = df.copy()
+    if "paper_activity" not in df.columns:
+        df["paper_activity"] = ""
+    df["paper_activity"] = df["paper_activity"].fillna("").astype(str)
+    g = df.groupby(["protocol", "source", "activity", "paper_activity", "method", "n_train"], sort=True)["error"]
+    out = g.agg(mean="mean", std=lambda e: float(np.std(e, ddof=1)) if len(e) > 1 else math.nan, n="count")
+    out = out.reset_index()
+    out["key"] = out["paper_activity"].map(paper_key)
+    return out
+
+
+# --------------------------------------------------------------------------------------------------- LaTeX
+def latex_escape(text):
+    repl = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+            "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+    return "".join(repl.get(c, c) for c in str(text))
+
+
+def format_cell(mean, std, *, bold=False, digits=2):
+    """``mean $\\pm$ {\\small std}`` with the mean in bold if ``bold``; ``--`` for a missing mean."""
+    if mean is None or not np.isfinite(mean):
+        return "--"
+    m = f"{mean:.{digits}f}"
+    if bold:
+        m = rf"\textbf{{{m}}}"
+    if std is None or not np.isfinite(std):
+        return m
+    return rf"{m} $\pm$ {{\small {std:.{digits}f}}}"
+
+
+def best_mask(values, digits=2):
+    """True where a value is the smallest (after rounding to ``digits``, so that printed ties are both bold)."""
+    v = np.array([np.round(x, digits) if x is not None and np.isfinite(x) else np.inf for x in values])
+    if not np.isfinite(v).any():
+        return [False] * len(v)
+    return list(v == v.min())
+
+
+def _row(cells):
+    return " & ".join(cells) + r" \\"
+
+
+def latex_table(summary, paper, *, source, table, methods, labels, n_train, status, protocols, digits=2):
+    """LaTeX (booktabs) for one of the paper's tables on one data source, one tabular per protocol.
+
+    Parameters
+    ----------
+    summary : DataFrame from :func:`summarize`.
+    paper : DataFrame from :func:`read_paper_tables`.
+    methods : method keys in column order; labels : {method: column label}.
+    n_train : training sizes of the study (rows per activity).
+    status : {paper activity name: studied activity id, or a sentence saying why there is no row and how
+        to get the data}; a paper activity missing from ``status`` gets "no data".
+    protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
+        the random protocol, the paper's.
+    """
+    if table not in PAPER_TABLES:
+        raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
+    ncol = 2 + len(methods)
+    sizes = sorted(int(n) for n in n_train)
+    s = summary[summary["source"] == source]
+    p = paper[paper["table"] == table]
+    out = [f"% Table {table} of the paper on data source {source!r}; generated from results/aggregate/results.csv"]
+    for protocol in protocols:
+        sp = s[s["protocol"] == protocol]
+        caption = (
+            f"Table {table} on the {latex_escape(source)} data, protocol ``{latex_escape(protocol)}'': "
+            r"mean error $\pm$ std (degrees) over seeds; best of each row in bold."
+        )
+        if protocol == "random":
+            caption += " Italic rows: the paper's numbers."
+        out += [
+            r"\begin{table}[htbp]",
+            r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
+            rf"\caption{{{caption}}}",
+            rf"\label{{tab:{table}-{source}-{protocol}}}",
+            r"\begin{tabular}{@{}p{2.4cm}r" + "c" * len(methods) + "@{}}",
+            r"\toprule",
+            _row(["Activity", r"Tr.\ \#"] + [latex_escape(labels.get(m, m)) for m in methods]),
+        ]
+        for paper_name in PAPER_TABLES[table]:
+            out.append(r"\midrule")
+            name = latex_escape(paper_name)
+            activity = status.get(paper_name, f"no {source} data on this machine")
+            if activity not in set(sp["activity"]):
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\emph{{{latex_escape(activity)}}}}}"
+                out.append(_row([name, note]))
+                continue
+            for n in sizes:
+                cell = sp[(sp["activity"] == activity) & (sp["n_train"] == n)].set_index("method")
+                means = [float(cell.at[m, "mean"]) if m in cell.index else math.nan for m in methods]
+                stds = [float(cell.at[m, "std"]) if m in cell.index else math.nan for m in methods]
+                bold = best_mask(means, digits)
+                out.append(
+                    _row([name, str(n)] + [format_cell(a, b, bold=c, digits=digits) for a, b, c in zip(means, stds, bold)])
+                )
+                if protocol != "random":
+                    continue
+                pc = p[(p["key"] == paper_key(paper_name)) & (p["n_train"] == n)].set_index("method")
+                if not any(labels.get(m, m) in pc.index for m in methods):
+                    continue
+                pl = [labels.get(m, m) for m in methods]
+                pm = [float(pc.at[lab, "mean_deg"]) if lab in pc.index else math.nan for lab in pl]
+                ps = [float(pc.at[lab, "std_deg"]) if lab in pc.index else math.nan for lab in pl]
+                pb = best_mask(pm, digits)
+                cells = [
+                    r"\emph{" + format_cell(a, b, bold=c, digits=digits) + "}" if np.isfinite(a) else ""
+                    for a, b, c in zip(pm, ps, pb)
+                ]
+                out.append(_row([r"\emph{\quad paper}", ""] + cells))
+        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
+    return "\n".join(out)
+
+
+def write_text(path, text):
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)

@@ -1,0 +1,384 @@
+"""One job of the benchmark study: split, pose transform, (tune,) fit, predict, score, result row.
+
+The paper's protocol ("A Bayesian Framework for Sparse Representation-Based 3D Human Pose Estimation",
+Section "Experimental Results"): 600 frames per activity, N in {30, 60, 100, 200} random frames for
+training and the rest for testing, error = mean over the 57 angles of the per-angle RMS (degrees),
+mean +- std over 10 random splits. A second protocol, ``"contiguous"``, trains on one contiguous block of
+frames and tests on the frames farther than ``gap`` frames from it, so that no test frame has a
+near-duplicate neighbour in the training set (random frames of one sequence do).
+
+Nothing here reads Snakemake objects or the configuration: the workflow scripts pass plain values.
+Estimators are named by dotted path (``"bsrbench.models.bsr:BayesianSR"``) and imported only when used,
+so a missing model module fails only the jobs that need it.
+"""
+
+import importlib
+import inspect
+import json
+import math
+import platform
+import time
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataFileError, InputError
+from .io import atomic_path
+from .metrics import interval_coverage, mean_angle_error, per_angle_rms
+from .poses import HeadingTransform, get_pose_transform
+from .seeds import method_seed, split_seed
+
+PROTOCOLS = ("random", "contiguous")
+CV_MODES = ("per_size", "per_job", "none")
+#: Nominal levels of the central predictive intervals whose empirical coverage every job records.
+COVERAGE_LEVELS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
+_VERSION_PACKAGES = ("bsrbench", "numpy", "scipy", "scikit-learn", "numba")
+
+
+# --------------------------------------------------------------------------------------------------- loading
+def load_estimator_class(path):
+    """Import ``"package.module:ClassName"`` and return the class; errors name the path."""
+    if not isinstance(path, str) or path.count(":") != 1:
+        raise InputError(f"estimator path must look like 'package.module:ClassName'; got {path!r}")
+    module_name, class_name = path.split(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise InputError(f"estimator {path!r}: cannot import module {module_name!r} ({exc})") from exc
+    try:
+        return getattr(module, class_name)
+    except AttributeError:
+        raise InputError(f"estimator {path!r}: module {module_name!r} has no attribute {class_name!r}") from None
+
+
+def make_estimator(path, params, random_state=None):
+    """Instantiate the estimator at ``path`` with ``params``; ``random_state`` is set if the class takes one."""
+    cls = load_estimator_class(path)
+    params = dict(params or {})
+    accepted = set(inspect.signature(cls).parameters)
+    unknown = sorted(set(params) - accepted)
+    if unknown:
+        raise InputError(
+            f"estimator {path!r} has no parameter(s) {unknown}; it accepts {sorted(accepted)}"
+        )
+    if random_state is not None and "random_state" in accepted and "random_state" not in params:
+        params["random_state"] = int(random_state)
+    return cls(**params)
+
+
+def load_features(path):
+    """Read a features file (``X`` frames x features, ``Y`` frames x angles in degrees) and check it."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataFileError(path, "features file does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: f[k] for k in f.files}
+    except (OSError, ValueError) as exc:
+        raise DataFileError(path, f"cannot read as .npz ({exc})") from exc
+    for key in ("X", "Y"):
+        if key not in data:
+            raise DataFileError(path, f"missing array {key!r}; it has {sorted(data)}")
+    X = np.asarray(data["X"], dtype=float)
+    Y = np.asarray(data["Y"], dtype=float)
+    if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
+        raise DataFileError(path, f"X and Y must be 2-D with the same number of rows; got {X.shape} and {Y.shape}")
+    for key, a in (("X", X), ("Y", Y)):
+        if not np.all(np.isfinite(a)):
+            row = int(np.argwhere(~np.isfinite(a))[0][0])
+            raise DataFileError(path, f"{key} has a non-finite value in row {row}")
+    out = {"X": X, "Y": Y}
+    out["frames"] = np.asarray(data["frames"]) if "frames" in data else np.arange(X.shape[0])
+    if "angle_names" in data:
+        out["angle_names"] = [str(a) for a in data["angle_names"]]
+    else:
+        out["angle_names"] = [f"angle{i}" for i in range(Y.shape[1])]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------- split
+def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30):
+    """Indices ``(train, test)`` of one split, both sorted.
+
+    ``random``: ``n_train`` frames drawn without replacement, the rest are test (the paper's protocol).
+    ``contiguous``: the training frames are one block ``[s, s + n_train)`` with a random start ``s``;
+    the test frames are those more than ``gap`` frames away from the block.
+    Raises InputError if fewer than ``min_test`` test frames remain.
+    """
+    n_frames, n_train, min_test, gap = int(n_frames), int(n_train), int(min_test), int(gap)
+    if protocol not in PROTOCOLS:
+        raise InputError(f"protocol must be one of {PROTOCOLS}; got {protocol!r}")
+    if n_train < 2:
+        raise InputError(f"n_train must be >= 2; got {n_train}")
+    if gap < 0:
+        raise InputError(f"gap must be >= 0; got {gap}")
+    rng = np.random.default_rng(seed)
+    if protocol == "random":
+        if n_frames - n_train < min_test:
+            raise InputError(
+                f"n_train={n_train} leaves {n_frames - n_train} test frames of {n_frames}; at least min_test={min_test} needed"
+            )
+        perm = rng.permutation(n_frames)
+        return np.sort(perm[:n_train]), np.sort(perm[n_train:])
+    # contiguous: choose among starts that leave enough test frames
+    starts = np.arange(0, n_frames - n_train + 1)
+    n_test = n_frames - (np.minimum(starts + n_train + gap, n_frames) - np.maximum(starts - gap, 0))
+    ok = starts[n_test >= min_test]
+    if ok.size == 0:
+        raise InputError(
+            f"contiguous protocol: n_train={n_train} with gap={gap} leaves fewer than min_test={min_test} "
+            f"test frames of {n_frames} for every block position"
+        )
+    s = int(rng.choice(ok))
+    train = np.arange(s, s + n_train)
+    frames = np.arange(n_frames)
+    test = frames[(frames < s - gap) | (frames >= s + n_train + gap)]
+    return train, test
+
+
+def max_n_train(n_frames, *, protocol="random", min_test=100, gap=30):
+    """Largest n_train that :func:`make_split` accepts (used to check configurations before running)."""
+    if protocol == "contiguous":
+        return int(n_frames - min_test - gap)  # block at one end, gap on one side
+    return int(n_frames - min_test)
+
+
+# ------------------------------------------------------------------------------------------- pose transform
+def inverse_std(transform, Z_mean, Z_std):
+    """Predictive std in the original angle space from the std in the transformed space.
+
+    The heading angle ``atan2(s, c)`` gets the first-order (delta-method) std
+    ``sqrt(c^2 sd_s^2 + s^2 sd_c^2) / (s^2 + c^2)`` in degrees; other columns are unchanged.
+    """
+    Z_mean = np.asarray(Z_mean, dtype=float)
+    Z_std = np.asarray(Z_std, dtype=float)
+    if not isinstance(transform, HeadingTransform):
+        return Z_std
+    s, c = Z_mean[:, -2], Z_mean[:, -1]
+    ss, sc = Z_std[:, -2], Z_std[:, -1]
+    r2 = np.maximum(s * s + c * c, 1e-12)
+    sd_heading = np.rad2deg(np.sqrt(c * c * ss * ss + s * s * sc * sc) / r2)
+    return np.insert(Z_std[:, :-2], transform.column, sd_heading, axis=1)
+
+
+def _supports_std(estimator):
+    try:
+        return "return_std" in inspect.signature(estimator.predict).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _to_builtin(v):
+    """JSON-friendly copy of numbers, arrays, dicts and lists."""
+    if isinstance(v, dict):
+        return {str(k): _to_builtin(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_to_builtin(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _to_builtin(v.tolist())
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def package_versions():
+    """Versions of the packages that determine the numbers (and the Python version)."""
+    out = {"python": platform.python_version()}
+    for name in _VERSION_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------ tune
+@dataclass
+class JobSpec:
+    """What identifies one job of the study."""
+
+    source: str
+    activity: str
+    method: str
+    n_train: int
+    seed: int
+    protocol: str = "random"
+    pose_transform: str = "heading"
+    min_test: int = 100
+    gap: int = 30
+    paper_activity: str = ""
+
+    def split(self, n_frames):
+        return make_split(
+            n_frames,
+            self.n_train,
+            protocol=self.protocol,
+            seed=split_seed(self.source, self.activity, self.n_train, self.seed),
+            min_test=self.min_test,
+            gap=self.gap,
+        )
+
+    @property
+    def method_seed(self):
+        return method_seed(self.source, self.activity, self.n_train, self.seed, self.method)
+
+
+def cross_validate(spec, features, *, estimator, params, grid, folds=5):
+    """Choose hyper-parameters by ``folds``-fold CV on the training frames of ``spec``'s split.
+
+    Delegates to :func:`bsrbench.tuning.tune` (the grid search shared by all methods) with the pose
+    transform of the study. Returns a JSON-ready dict: best_params (merged over ``params``), best_score,
+    the CV table, and the seconds it took.
+    """
+    from .tuning import tune  # imported here: only CV jobs need it
+
+    X, Y = features["X"], features["Y"]
+    train, _ = spec.split(X.shape[0])
+    grid = {k: list(v) for k, v in (grid or {}).items()}
+    est = make_estimator(estimator, params, random_state=spec.method_seed)
+    t0 = time.perf_counter()
+    if grid:
+        res = tune(
+            est,
+            grid,
+            X[train],
+            Y[train],
+            cv=int(folds),
+            random_state=spec.method_seed,
+            pose_transform=get_pose_transform(spec.pose_transform),
+        )
+        best, score, n_fits = dict(res.best_params), res.best_score, res.n_fits
+        table = res.cv_results.drop(columns=["params"], errors="ignore").to_dict(orient="records")
+    else:
+        best, score, table, n_fits = {}, None, [], 0
+    seconds = time.perf_counter() - t0
+    chosen = dict(params or {})
+    chosen.update(best)
+    return _to_builtin(
+        {
+            "source": spec.source,
+            "activity": spec.activity,
+            "method": spec.method,
+            "n_train": spec.n_train,
+            "cv_seed": spec.seed,
+            "protocol": spec.protocol,
+            "folds": int(folds),
+            "grid": grid,
+            "best_params": chosen,
+            "best_score": score,
+            "cv_results": table,
+            "n_fits": n_fits,
+            "cv_seconds": seconds,
+        }
+    )
+
+
+# ------------------------------------------------------------------------------------------------------- run
+def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=None):
+    """Fit ``estimator`` (dotted path) with ``params`` on the training frames of ``spec``'s split.
+
+    Returns ``(row, arrays)``: the tidy result row (JSON-ready dict) and the arrays to save
+    (test indices, true and predicted angles, predictive std if any, and the sampler trace if any).
+    """
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0])
+    transform = get_pose_transform(spec.pose_transform)
+    est = make_estimator(estimator, params, random_state=spec.method_seed)
+
+    t0 = time.perf_counter()
+    est.fit(X[train], transform.forward(Y[train]))
+    fit_seconds = time.perf_counter() - t0
+
+    with_std = _supports_std(est)
+    t0 = time.perf_counter()
+    if with_std:
+        Z_mean, Z_std = est.predict(X[test], return_std=True)
+    else:
+        Z_mean, Z_std = est.predict(X[test]), None
+    predict_seconds = time.perf_counter() - t0
+
+    Z_mean = np.asarray(Z_mean, dtype=float)
+    if Z_mean.ndim != 2 or Z_mean.shape[0] != test.size:
+        raise InputError(
+            f"{spec.method}: predict returned shape {Z_mean.shape}; expected ({test.size}, n_outputs)"
+        )
+    Y_pred = transform.inverse(Z_mean)
+    Y_true = Y[test]
+    rms = per_angle_rms(Y_true, Y_pred)
+    row = {
+        "source": spec.source,
+        "activity": spec.activity,
+        "paper_activity": spec.paper_activity or "",
+        "method": spec.method,
+        "n_train": int(spec.n_train),
+        "seed": int(spec.seed),
+        "protocol": spec.protocol,
+        "pose_transform": spec.pose_transform,
+        "cv": cv_mode,
+        "estimator": estimator,
+        "params": _to_builtin(dict(params or {})),
+        "n_test": int(test.size),
+        "split_seed": split_seed(spec.source, spec.activity, spec.n_train, spec.seed),
+        "method_seed": spec.method_seed,
+        "error": mean_angle_error(Y_true, Y_pred),
+        "per_angle_rms": rms.tolist(),
+        "fit_seconds": fit_seconds,
+        "predict_seconds": predict_seconds,
+        "cv_seconds": cv_seconds,
+        "versions": package_versions(),
+    }
+    arrays = {"train": train, "test": test, "y_true": Y_true, "y_pred": Y_pred}
+    if with_std:
+        Y_std = inverse_std(transform, Z_mean, np.asarray(Z_std, dtype=float))
+        for level in COVERAGE_LEVELS:
+            row[f"coverage_{int(round(level * 100))}"] = interval_coverage(Y_true, Y_pred, Y_std, level=level)
+        row["coverage"] = row["coverage_90"]
+        arrays["y_std"] = Y_std
+    else:
+        row["coverage"] = None
+    trace = getattr(est, "trace_", None)
+    if isinstance(trace, dict):
+        for key, value in trace.items():
+            a = np.asarray(value)
+            if a.dtype.kind in "biuf":
+                arrays[f"trace_{key}"] = a
+    return _to_builtin(row), arrays
+
+
+def write_json(path, obj):
+    """Write ``obj`` as sorted, indented JSON, atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(_to_builtin(obj), indent=1, sort_keys=True) + "\n")
+
+
+def write_arrays(path, arrays):
+    """Write arrays to ``path`` (.npz, compressed), atomically."""
+    with atomic_path(path) as tmp:
+        np.savez_compressed(tmp, **arrays)
+
+
+def read_json(path):
+    path = Path(path)
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DataFileError(path, f"cannot read JSON ({exc})") from exc
+
+
+def default_grid(path):
+    """The hyper-parameter grid a model module publishes as ``DEFAULT_GRID`` for the class at ``path``.
+
+    A module may publish one grid (``{param: [values]}``) or one per class (``{ClassName: {param: [values]}}``).
+    Returns ``{}`` if the module publishes none.
+    """
+    cls = load_estimator_class(path)
+    grid = getattr(importlib.import_module(cls.__module__), "DEFAULT_GRID", None) or {}
+    if cls.__name__ in grid and isinstance(grid[cls.__name__], dict):
+        grid = grid[cls.__name__]
+    if not all(isinstance(v, (list, tuple)) for v in grid.values()):
+        raise InputError(f"{cls.__module__}.DEFAULT_GRID for {cls.__name__} is not a {{param: [values]}} dict")
+    return {k: list(v) for k, v in grid.items()}

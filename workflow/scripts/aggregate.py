@@ -1,0 +1,11 @@
+"""Snakemake adapter of rule aggregate: result rows (JSON) -> results/aggregate/results.csv."""
+
+import sys
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.tables import aggregate_files, write_csv  # noqa: E402
+
+df = aggregate_files(snakemake.input)  # noqa: F821
+write_csv(df, snakemake.output[0])  # noqa: F821
+print(f"{len(df)} rows", file=sys.stderr)

@@ -1,0 +1,14 @@
+"""Snakemake adapter of rule plot_calibration."""
+
+import sys
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.plots import plot_calibration, save  # noqa: E402
+from bsrbench.reporting.tables import read_results  # noqa: E402
+
+sm = snakemake  # noqa: F821
+fig = plot_calibration(
+    read_results(sm.input.results), methods=list(sm.params.methods), labels=dict(sm.params.labels)
+)
+save(fig, [sm.output.pdf, sm.output.png])

@@ -1,0 +1,18 @@
+"""Snakemake adapter of rule plot_error_vs_ntrain."""
+
+import sys
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.plots import plot_error_vs_ntrain, save  # noqa: E402
+from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E402
+
+sm = snakemake  # noqa: F821
+fig = plot_error_vs_ntrain(
+    read_results(sm.input.results),
+    read_paper_tables(sm.input.paper),
+    source=sm.wildcards.source,
+    methods=list(sm.params.methods),
+    labels=dict(sm.params.labels),
+)
+save(fig, [sm.output.pdf, sm.output.png])

@@ -1,0 +1,36 @@
+"""Snakemake adapter of rule plot_trace: the MCMC trace saved by one fit job."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.plots import plot_trace, save  # noqa: E402
+from bsrbench.reporting.tables import read_results  # noqa: E402
+
+sm = snakemake  # noqa: F821
+path = Path(sm.input.predictions)
+# .../fit/{protocol}/{source}/{activity}/{method}/n{N}/seed{seed}.npz
+protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)
+df = read_results(sm.input.results)
+row = df[
+    (df["protocol"] == protocol)
+    & (df["source"] == source)
+    & (df["activity"] == activity)
+    & (df["method"] == method)
+    & (df["n_train"] == int(n[1:]))
+    & (df["seed"] == int(seed[4:]))
+]
+params = json.loads(row["params"].iloc[0]) if len(row) else {}
+with np.load(path) as f:
+    arrays = {k: f[k] for k in f.files}
+label = dict(sm.params.labels).get(method, method)
+fig = plot_trace(
+    arrays,
+    title=f"{label} on {source}/{activity}, N={n[1:]}, seed {seed[4:]}",
+    n_burn_in=params.get("n_burn_in"),
+)
+save(fig, [sm.output.pdf, sm.output.png])

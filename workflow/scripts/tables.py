@@ -1,0 +1,27 @@
+"""Snakemake adapter of rule table: the paper's Table I or II on one data source, as LaTeX."""
+
+import sys
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.tables import (  # noqa: E402
+    latex_table,
+    read_paper_tables,
+    read_results,
+    summarize,
+    write_text,
+)
+
+sm = snakemake  # noqa: F821
+text = latex_table(
+    summarize(read_results(sm.input.results)),
+    read_paper_tables(sm.input.paper),
+    source=sm.wildcards.source,
+    table=sm.wildcards.table,
+    methods=list(sm.params.methods),
+    labels=dict(sm.params.labels),
+    n_train=list(sm.params.n_train),
+    status=dict(sm.params.status),
+    protocols=list(sm.params.protocols),
+)
+write_text(sm.output[0], text)
