@@ -1,0 +1,189 @@
+"""Data sets: checksums, the .mat loader, prepared motions, feature files and the CMU download helper."""
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+from bsrbench.datasets import (
+    FeatureSet,
+    build_mat_features,
+    check_features,
+    cmu_url,
+    download_cmu_skeleton,
+    download_cmu_trial,
+    load_feature_mat,
+    load_features,
+    prepare_motion,
+    read_checksums,
+    save_features,
+    select_frames,
+    sha256_file,
+    verify_checksum,
+)
+from bsrbench.errors import DataFileError, InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+FEAT = ROOT / "resources" / "paper-features"
+CMU = ROOT / "resources" / "cmu-mocap"
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def test_checksum_lists_of_vendored_data_verify():
+    for sums in (FEAT / "SHA256SUMS", CMU / "SHA256SUMS"):
+        table = read_checksums(sums)
+        assert table
+        for path in table:
+            verify_checksum(path, sums)
+
+
+@pytest.mark.parametrize("name", ["x63", "x4921"])
+def test_load_authors_features(name):
+    fs = load_feature_mat(FEAT / f"{name}.mat", checksums=FEAT / "SHA256SUMS")
+    raw = scipy.io.loadmat(FEAT / f"{name}.mat")
+    assert fs.X.shape == (600, 100) and fs.Y.shape == (600, 57)
+    np.testing.assert_array_equal(fs.X, raw["X"][:600])
+    np.testing.assert_array_equal(fs.Y, raw["Y"][:600, 3:])
+    np.testing.assert_array_equal(fs.frames, np.arange(600))
+    assert len(fs.angle_names) == 57
+    assert fs.meta["sha256"] == [sha256_file(FEAT / f"{name}.mat")]
+
+
+def test_checksum_mismatch_leaves_no_output(tmp_path):
+    mat = tmp_path / "x63.mat"
+    shutil.copy(FEAT / "x63.mat", mat)
+    good = sha256_file(mat)
+    wrong = ("0" if good[0] != "0" else "1") + good[1:]
+    (tmp_path / "SHA256SUMS").write_text(f"{wrong}  x63.mat\n")
+    out = tmp_path / "out" / "golf.npz"
+    with pytest.raises(DataFileError, match=rf"x63\.mat: checksum mismatch: expected sha256 {wrong} .* got {good}"):
+        build_mat_features(mat, out, checksums=tmp_path / "SHA256SUMS")
+    assert not out.exists()
+    (tmp_path / "SHA256SUMS").write_text(f"{good}  other.mat\n")
+    with pytest.raises(DataFileError, match=r"x63\.mat: has no entry in the checksum list"):
+        verify_checksum(mat, tmp_path / "SHA256SUMS")
+
+
+def test_mat_without_y(tmp_path):
+    p = tmp_path / "noy.mat"
+    scipy.io.savemat(p, {"X": np.ones((10, 4)), "Z": np.ones((10, 6))})
+    with pytest.raises(DataFileError, match=r"noy\.mat: has no variable 'Y' \(variables: \['X', 'Z'\]\)"):
+        load_feature_mat(p, n_frames=5)
+    scipy.io.savemat(p, {"Y": np.ones((10, 6))})
+    with pytest.raises(DataFileError, match=r"has no variable 'X'"):
+        load_feature_mat(p, n_frames=5)
+
+
+def test_nan_in_features_is_rejected_without_output(tmp_path):
+    p = tmp_path / "nan.mat"
+    X = np.ones((10, 4))
+    X[3, 2] = np.nan
+    scipy.io.savemat(p, {"X": X, "Y": np.zeros((10, 6))})
+    out = tmp_path / "nan.npz"
+    with pytest.raises(InputError, match=r"nan\.mat: X has 1 non-finite value\(s\), first at row 3, column 2"):
+        build_mat_features(p, out, n_frames=8)
+    assert not out.exists()
+    with pytest.raises(InputError, match=r"demo: Y has 1 non-finite"):
+        check_features(np.ones((2, 2)), np.array([[0.0, np.inf], [0, 0]]), "demo")
+
+
+def test_mat_shorter_than_frames_asked(tmp_path):
+    p = tmp_path / "short.mat"
+    scipy.io.savemat(p, {"X": np.ones((10, 4)), "Y": np.zeros((10, 6))})
+    with pytest.raises(InputError, match=r"short\.mat: has 10 usable frames but n_frames = 20"):
+        load_feature_mat(p, n_frames=20)
+
+
+def test_select_frames():
+    np.testing.assert_array_equal(select_frames(700, 5, "first"), np.arange(5))
+    np.testing.assert_array_equal(select_frames(9, 5, "spread"), [0, 2, 4, 6, 8])
+    with pytest.raises(InputError, match=r"frame_selection must be 'first' or 'spread'; got 'last'"):
+        select_frames(9, 5, "last")
+
+
+def test_prepare_motion_and_short_trial(tmp_path):
+    out = tmp_path / "mocap" / "walk.npz"
+    sel = prepare_motion([CMU / "12_02.bvh"], out, n_frames=50, checksums=CMU / "SHA256SUMS")
+    with np.load(out) as z:
+        assert z["positions"].shape == (50, sel.positions.shape[1], 3)
+        assert z["angles"].shape == (50, 57)
+        assert list(z["trial_ids"]) == ["12_02"]
+        np.testing.assert_array_equal(z["frames"], np.round(np.linspace(0, 672, 50)).astype(int))
+        assert str(z["angle_names"][int(z["heading_column"])]) == "hip_Yrotation"
+    short = tmp_path / "mocap" / "short.npz"
+    with pytest.raises(InputError, match=r"09_01\.bvh: has 148 usable frames but n_frames = 600"):
+        prepare_motion([CMU / "09_01.bvh"], short, n_frames=600)
+    assert not short.exists()
+
+
+def test_prepare_motion_checks_checksums(tmp_path):
+    bvh = tmp_path / "12_02.bvh"
+    text = (CMU / "12_02.bvh").read_text()
+    bvh.write_text(text.replace("Frame Time:", "Frame Time: ", 1))
+    (tmp_path / "SHA256SUMS").write_text(f"{sha256_file(CMU / '12_02.bvh')}  12_02.bvh\n")
+    out = tmp_path / "m.npz"
+    with pytest.raises(DataFileError, match=r"12_02\.bvh: checksum mismatch"):
+        prepare_motion([bvh], out, n_frames=10, checksums=tmp_path / "SHA256SUMS")
+    assert not out.exists()
+
+
+def test_features_round_trip_and_missing_file(tmp_path):
+    rng = np.random.default_rng(0)
+    fs = FeatureSet(rng.random((6, 4)), rng.random((6, 3)), np.arange(6), ["a", "b", "c"], {"activity": "x"})
+    save_features(tmp_path / "f.npz", fs)
+    back = load_features(tmp_path / "f.npz")
+    np.testing.assert_array_equal(back.X, fs.X)
+    np.testing.assert_array_equal(back.Y, fs.Y)
+    assert back.angle_names == ["a", "b", "c"] and str(back.meta["activity"]) == "x"
+    with pytest.raises(DataFileError, match=r"gone\.npz: features file not found"):
+        load_features(tmp_path / "gone.npz")
+    with pytest.raises(DataFileError, match=r"gone\.mat: file not found"):
+        load_feature_mat(tmp_path / "gone.mat")
+
+
+# ------------------------------------------------------------------------------------------------ download
+
+
+def _site(tmp_path):
+    """A local copy of CMU's layout (SS/SS.asf, SS/SS_TT.amc) served through a file:// URL."""
+    site = tmp_path / "site" / "01"
+    site.mkdir(parents=True)
+    shutil.copy(DATA / "01.asf", site / "01.asf")
+    shutil.copy(DATA / "01_01.amc", site / "01_01.amc")
+    return (tmp_path / "site").as_uri()
+
+
+def test_cmu_url():
+    assert cmu_url("http://mocap.cs.cmu.edu/subjects", "9", "12") == "http://mocap.cs.cmu.edu/subjects/09/09_12.amc"
+    assert cmu_url("http://x/subjects/", 49) == "http://x/subjects/49/49.asf"
+
+
+def test_download_from_local_url(tmp_path):
+    base = _site(tmp_path)
+    dest = tmp_path / "dl" / "01"
+    d_asf = download_cmu_skeleton("01", dest / "01.asf", base_url=base)
+    d_amc = download_cmu_trial("01", "01", dest / "01_01.amc", dest / "01.asf", base_url=base)
+    assert d_amc == sha256_file(DATA / "01_01.amc") and d_asf == sha256_file(DATA / "01.asf")
+    assert (dest / "01_01.amc").read_bytes() == (DATA / "01_01.amc").read_bytes()
+    assert (dest / "01_01.amc.sha256").read_text().split() == [d_amc, "01_01.amc"]
+    verify_checksum(dest / "01_01.amc", "sidecar")
+    # With the digest known in advance, a wrong one is refused and nothing is written.
+    with pytest.raises(DataFileError, match=r"checksum mismatch for file://.*01_01\.amc: expected sha256 f{64}"):
+        download_cmu_trial("01", "01", tmp_path / "dl2" / "01_01.amc", dest / "01.asf", base_url=base,
+                           expected_sha256="f" * 64)
+    assert not (tmp_path / "dl2" / "01_01.amc").exists()
+
+
+def test_download_that_does_not_parse_leaves_nothing(tmp_path):
+    base = _site(tmp_path)
+    amc = tmp_path / "site" / "01" / "01_01.amc"
+    amc.write_text(amc.read_text().replace("lradius 45.0", "lradius"))
+    dest = tmp_path / "dl"
+    download_cmu_skeleton(1, dest / "01.asf", base_url=base)
+    with pytest.raises(DataFileError, match=r"01_01\.amc: downloaded from file://.* but does not parse: .*'lradius' has 0 values"):
+        download_cmu_trial(1, 1, dest / "01_01.amc", dest / "01.asf", base_url=base)
+    assert sorted(p.name for p in dest.iterdir()) == ["01.asf", "01.asf.sha256"]
+    with pytest.raises(DataFileError, match=r"download from file://.*/02/02_01\.amc failed"):
+        download_cmu_trial(2, 1, dest / "02_01.amc", dest / "01.asf", base_url=base)
