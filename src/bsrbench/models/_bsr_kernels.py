@@ -1,0 +1,671 @@
+"""Numba kernels of the Bayesian sparse-representation (BSR) Gibbs sampler.
+
+Model and conditionals: Babagholami-Mohamadabadi, Jourabloo, Zarghami & Kasaei, "A Bayesian Framework for
+Sparse Representation-Based 3D Human Pose Estimation" (IEEE SPL 2014), Section III and Appendix A, with the
+corrections of the project's model reference (docs "MODEL.md"): the (b, s) block update with s integrated out
+for b, the atom precision ``g + g_xy sum_i alpha_ki^2`` (the paper prints the square of the sum), and the
+Metropolis-Hastings acceptance ratio of the bound-based proposal ``w' ~ N(Sigma Lambda(w), Sigma)`` that
+depends on the current state (the paper treats it as an independence chain, which is wrong). Elliptical slice
+sampling is from Murray, Adams & MacKay, "Elliptical slice sampling" (AISTATS 2010).
+
+Layout (all C-contiguous float64 unless noted):
+
+- ``V`` (N, M): the data, one training pair ``[x_i; y_i]`` per row; the first ``Mx`` columns are features.
+- ``D`` (K, M): the dictionaries, one atom ``d_k = [d^x_k; d^y_k]`` per row (contiguous atoms).
+- ``norms`` (K,): ``||d_k||^2``.
+- ``B`` (N, K) int8 and ``S`` (N, K): codes ``alpha_ki = B[i, k] * S[i, k]``.
+- ``R`` (N, M): the residual ``V - A^T D``, updated in place by the code update.
+- ``W`` (N, K): the logits ``w_ik``; atom k's logit vector is the column ``W[:, k]``.
+- ``prec`` (4,): ``[g_s, g_xy, g_x, g_y]``.
+- ``Sigma`` (N, N) and its lower Cholesky factor ``Lw``.
+
+Every random draw comes from the ``numpy.random.Generator`` passed in (numba shares its bit generator with
+the Python object), in a fixed, documented order, so the plain NumPy reference ``tests/naive.py`` fed the
+same Generator reproduces the kernels draw for draw. Prediction uses a counter-based stream per test point
+(splitmix64 seeded by a hash of the point and a fitted seed), so a prediction does not depend on which other
+points are in the batch.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ..errors import InputError, SamplerError
+
+# Vectorizable reductions: reassociation and FMA contraction only (no nnan/ninf: the MH step uses -inf).
+_VEC = {"reassoc", "contract"}
+
+W_UPDATES = {"mh": 0, "ess": 1, "paper-as-printed": 2}
+
+_LOG_2PI = np.log(2.0 * np.pi)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# small helpers
+# ----------------------------------------------------------------------------------------------------------
+@njit(cache=True, fastmath=_VEC)
+def _dot(a, b):
+    """Dot product of two contiguous 1-D arrays of equal length."""
+    acc = 0.0
+    for m in range(a.shape[0]):
+        acc += a[m] * b[m]
+    return acc
+
+
+@njit(cache=True, fastmath=_VEC)
+def _axpy(alpha, x, y):
+    """y += alpha * x (in place)."""
+    for m in range(x.shape[0]):
+        y[m] += alpha * x[m]
+
+
+@njit(cache=True, fastmath=_VEC)
+def _axpy_dot(alpha, x, y, b):
+    """y += alpha * x, then return b . y, in one pass over y."""
+    acc = 0.0
+    for m in range(x.shape[0]):
+        v = y[m] + alpha * x[m]
+        y[m] = v
+        acc += b[m] * v
+    return acc
+
+
+@njit(cache=True)
+def _sigmoid(x):
+    if x >= 0.0:
+        return 1.0 / (1.0 + np.exp(-x))
+    e = np.exp(x)
+    return e / (1.0 + e)
+
+
+@njit(cache=True)
+def _log_sigmoid(x):
+    if x >= 0.0:
+        return -np.log1p(np.exp(-x))
+    return x - np.log1p(np.exp(x))
+
+
+@njit(cache=True)
+def _codes_from(B, S):
+    """Dense codes A (N, K) with A[i, k] = B[i, k] * S[i, k]."""
+    N, K = S.shape
+    A = np.zeros((N, K))
+    for i in range(N):
+        for k in range(K):
+            if B[i, k]:
+                A[i, k] = S[i, k]
+    return A
+
+
+@njit(cache=True, fastmath=_VEC)
+def _row_norms(D, norms):
+    for k in range(D.shape[0]):
+        norms[k] = _dot(D[k], D[k])
+
+
+@njit(cache=True)
+def _residual(V, B, S, D, R):
+    """R = V - A D, recomputed from scratch (BLAS-3)."""
+    R[:, :] = V - _codes_from(B, S) @ D
+
+
+@njit(cache=True, fastmath=_VEC)
+def _trsv_rows(L, Z, j0, j1, transpose):
+    """Unblocked triangular solve on rows j0:j1 of Z (in place) with the diagonal block L[j0:j1, j0:j1]:
+    ``L_b X = Z_b`` (forward) or ``L_b^T X = Z_b`` (backward, ``transpose``)."""
+    ncol = Z.shape[1]
+    if not transpose:
+        for j in range(j0, j1):
+            zj = Z[j]
+            for i in range(j0, j):
+                lji = L[j, i]
+                zi = Z[i]
+                for m in range(ncol):
+                    zj[m] -= lji * zi[m]
+            inv = 1.0 / L[j, j]
+            for m in range(ncol):
+                zj[m] *= inv
+    else:
+        for j in range(j1 - 1, j0 - 1, -1):
+            zj = Z[j]
+            for i in range(j + 1, j1):
+                lij = L[i, j]
+                zi = Z[i]
+                for m in range(ncol):
+                    zj[m] -= lij * zi[m]
+            inv = 1.0 / L[j, j]
+            for m in range(ncol):
+                zj[m] *= inv
+
+
+@njit(cache=True)
+def _forward_solve(L, Z, nb=48):
+    """Solve L X = Z in place (L lower triangular K x K; Z (K, m) row-major); blocked, off-diagonal
+    blocks by matrix products (BLAS-3)."""
+    K = L.shape[0]
+    for j0 in range(0, K, nb):
+        j1 = min(j0 + nb, K)
+        if j0 > 0:
+            Z[j0:j1] -= np.ascontiguousarray(L[j0:j1, :j0]) @ Z[:j0]
+        _trsv_rows(L, Z, j0, j1, False)
+
+
+@njit(cache=True)
+def _backward_solve_t(L, Z, nb=48):
+    """Solve L^T X = Z in place (L lower triangular K x K; Z (K, m) row-major); blocked as above."""
+    K = L.shape[0]
+    nblk = (K + nb - 1) // nb
+    for b in range(nblk - 1, -1, -1):
+        j0 = b * nb
+        j1 = min(j0 + nb, K)
+        if j1 < K:
+            Z[j0:j1] -= np.ascontiguousarray(L[j1:, j0:j1].T) @ Z[j1:]
+        _trsv_rows(L, Z, j0, j1, True)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the updates (each mutates the state in place)
+# ----------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
+    """Joint (b_ki, s_ki) block update for every data point i and atom k (i outer, k inner).
+
+    With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
+    ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
+    ``s ~ N(0, 1/g_s)``. Draw order per (i, k): one uniform (for b), then one standard normal (for s).
+    The residual row r_i is updated in place by ``d_k (alpha_old - alpha_new)``: O(M) per (i, k).
+    """
+    N, K = B.shape
+    tau = np.empty(K)
+    half_log = np.empty(K)
+    sd_on = np.empty(K)
+    sd_off = 1.0 / np.sqrt(g_s)
+    for k in range(K):
+        tau[k] = g_s + g_xy * norms[k]
+        half_log[k] = 0.5 * np.log(g_s / tau[k])
+        sd_on[k] = 1.0 / np.sqrt(tau[k])
+    M = R.shape[1]
+    for i in range(N):
+        r = R[i]
+        pending = 0.0  # residual change owed by the previous atom, applied in the next pass over r
+        for k in range(K):
+            d = D[k]
+            a_old = S[i, k] if B[i, k] else 0.0
+            if pending != 0.0:
+                proj = _axpy_dot(pending, D[k - 1], r, d)
+                pending = 0.0
+            else:
+                proj = _dot(d, r)
+            proj += a_old * norms[k]
+            mu = g_xy * proj / tau[k]
+            logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
+            u = rng.random()
+            on = u < _sigmoid(logit)
+            z = rng.standard_normal()
+            if on:
+                s = mu + z * sd_on[k]
+                a_new = s
+            else:
+                s = z * sd_off
+                a_new = 0.0
+            pending = a_old - a_new
+            B[i, k] = 1 if on else 0
+            S[i, k] = s
+        if pending != 0.0:
+            _axpy(pending, D[K - 1], r)
+
+
+@njit(cache=True)
+def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
+    """Draw all atoms given the codes, then recompute the residual.
+
+    Given the codes the rows of D^x are independent with the common K x K precision
+    ``P = g_x I + g_xy A A^T`` (A = codes, K x N): ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with
+    ``P = U^T U``; likewise D^y with g_y. One Cholesky per dictionary and sweep. Draw order: one
+    (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y).
+    """
+    K, M = D.shape
+    A = _codes_from(B, S)
+    G = A.T @ A
+    AV = A.T @ V
+    E = rng.standard_normal((K, M))
+    for part in range(2):
+        if part == 0:
+            lo, hi, g = 0, Mx, g_x
+        else:
+            lo, hi, g = Mx, M, g_y
+        if hi == lo:
+            continue
+        P = g_xy * G
+        for k in range(K):
+            P[k, k] += g
+        Lc = np.linalg.cholesky(P)
+        Z = np.ascontiguousarray(AV[:, lo:hi]) * g_xy
+        _forward_solve(Lc, Z)
+        Z += E[:, lo:hi]
+        _backward_solve_t(Lc, Z)
+        D[:, lo:hi] = Z
+    _row_norms(D, norms)
+    R[:, :] = V - A @ D
+
+
+@njit(cache=True, fastmath=_VEC)
+def _sum_sq(a):
+    acc = 0.0
+    for v in a.ravel():
+        acc += v * v
+    return acc
+
+
+@njit(cache=True)
+def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
+    """Gamma conditionals of g_s, g_xy, g_x, g_y (shape/rate; drawn in this order).
+
+    g_s ~ Gamma(a + NK/2, b + sum s^2 / 2) over all N K weights (active or not);
+    g_xy ~ Gamma(a + NM/2, b + ||R||^2 / 2); g_x ~ Gamma(a + Mx K/2, b + ||D^x||^2 / 2); g_y likewise.
+    """
+    N, K = S.shape
+    M = D.shape[1]
+    My = M - Mx
+    ss = _sum_sq(S)
+    rr = _sum_sq(R)
+    dx = 0.0
+    dy = 0.0
+    for k in range(K):
+        for m in range(Mx):
+            dx += D[k, m] * D[k, m]
+        for m in range(Mx, M):
+            dy += D[k, m] * D[k, m]
+    prec[0] = rng.gamma(a0 + 0.5 * N * K, 1.0 / (b0 + 0.5 * ss))
+    prec[1] = rng.gamma(a0 + 0.5 * N * M, 1.0 / (b0 + 0.5 * rr))
+    prec[2] = rng.gamma(a0 + 0.5 * Mx * K, 1.0 / (b0 + 0.5 * dx))
+    if My > 0:
+        prec[3] = rng.gamma(a0 + 0.5 * My * K, 1.0 / (b0 + 0.5 * dy))
+
+
+@njit(cache=True)
+def _signs(B):
+    N, K = B.shape
+    Z = np.empty((N, K))
+    for i in range(N):
+        for k in range(K):
+            Z[i, k] = 1.0 if B[i, k] else -1.0
+    return Z
+
+
+@njit(cache=True)
+def _logit_terms(Z, W, Lam, LogSig):
+    """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w), i.e. the tight bound's Lambda) and
+    LogSig = log sigmoid(z w), elementwise, from one exp and one log1p per entry."""
+    N, K = W.shape
+    for i in range(N):
+        for k in range(K):
+            x = Z[i, k] * W[i, k]
+            e = np.exp(-abs(x))
+            if x >= 0.0:
+                Lam[i, k] = Z[i, k] * (e / (1.0 + e))
+                LogSig[i, k] = -np.log1p(e)
+            else:
+                Lam[i, k] = Z[i, k] * (1.0 / (1.0 + e))
+                LogSig[i, k] = x - np.log1p(e)
+
+
+@njit(cache=True)
+def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
+    """Metropolis-Hastings update of every logit vector w_k with the bound-based proposal.
+
+    Proposal (paper, Appendix A, with the tight bound lambda_i = sigmoid(-z_i w_i)):
+    ``w' ~ N(mu, Sigma)``, ``mu = Sigma Lambda(w)``, drawn as ``mu + Lw eps``. The correct log acceptance
+    ratio (the proposal depends on w, so it is not an independence chain) is
+    ``sum_i [log sig(z_i w'_i) - log sig(z_i w_i)] + w . Lambda' - w' . Lambda + (Lambda . mu - Lambda' . mu')/2``.
+    With ``paper_as_printed`` the paper's printed ratio ``sum_i [...] - Lambda . (w' - w)`` is used instead
+    (wrong target; an ablation only). All K atoms are batched as matrix products. Draw order: an (N, K)
+    array of standard normals, then K uniforms. Returns the number of accepted atoms.
+    """
+    N, K = W.shape
+    Z = _signs(B)
+    Lam = np.empty((N, K))
+    LogSig = np.empty((N, K))
+    _logit_terms(Z, W, Lam, LogSig)
+    Mu = Sigma @ Lam
+    Wp = Mu + Lw @ rng.standard_normal((N, K))
+    Lamp = np.empty((N, K))
+    LogSigp = np.empty((N, K))
+    _logit_terms(Z, Wp, Lamp, LogSigp)
+    Mup = Mu if paper_as_printed else Sigma @ Lamp
+    U = rng.random(K)
+    lr = np.zeros(K)
+    for i in range(N):
+        for k in range(K):
+            lr[k] += LogSigp[i, k] - LogSig[i, k]
+            if paper_as_printed:
+                lr[k] -= Lam[i, k] * (Wp[i, k] - W[i, k])
+            else:
+                lr[k] += (W[i, k] * Lamp[i, k] - Wp[i, k] * Lam[i, k]
+                          + 0.5 * (Lam[i, k] * Mu[i, k] - Lamp[i, k] * Mup[i, k]))
+    accepted = 0
+    for k in range(K):
+        if np.log(U[k]) < lr[k]:
+            accepted += 1
+            for i in range(N):
+                W[i, k] = Wp[i, k]
+    return accepted
+
+
+@njit(cache=True)
+def _loglik_w(Z, W, k):
+    acc = 0.0
+    for i in range(W.shape[0]):
+        acc += _log_sigmoid(Z[i, k] * W[i, k])
+    return acc
+
+
+@njit(cache=True)
+def update_w_ess(W, B, Lw, rng):
+    """Elliptical slice sampling (Murray, Adams & MacKay 2010) of every w_k, prior N(0, Sigma = Lw Lw^T).
+
+    Draw order: one (N, K) array of standard normals (the ellipses ``nu = Lw eps``); then per atom k: one
+    uniform for the slice height, one for the initial angle, one per shrinkage step. Returns K (every
+    update moves; the number of accepted atoms for the trace).
+    """
+    N, K = W.shape
+    Z = _signs(B)
+    Nu = Lw @ rng.standard_normal((N, K))
+    wk = np.empty(N)
+    wp = np.empty(N)
+    two_pi = 2.0 * np.pi
+    for k in range(K):
+        for i in range(N):
+            wk[i] = W[i, k]
+        log_y = _loglik_w(Z, W, k) + np.log(rng.random())
+        theta = rng.random() * two_pi
+        lo = theta - two_pi
+        hi = theta
+        while True:
+            c = np.cos(theta)
+            s = np.sin(theta)
+            ll = 0.0
+            for i in range(N):
+                wp[i] = wk[i] * c + Nu[i, k] * s
+                ll += _log_sigmoid(Z[i, k] * wp[i])
+            if ll > log_y:
+                break
+            if theta < 0.0:
+                lo = theta
+            else:
+                hi = theta
+            if hi - lo < 1e-300:  # cannot happen for a finite log-likelihood; guard against a hang
+                for i in range(N):
+                    wp[i] = wk[i]
+                break
+            theta = lo + rng.random() * (hi - lo)
+        for i in range(N):
+            W[i, k] = wp[i]
+    return K
+
+
+@njit(cache=True)
+def log_likelihood(R, g_xy):
+    """log p(V | D, A, g_xy) = N M / 2 log(g_xy / 2 pi) - g_xy ||R||^2 / 2."""
+    n = R.size
+    return 0.5 * n * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * _sum_sq(R)
+
+
+@njit(cache=True)
+def _sweep(V, R, D, norms, B, S, W, prec, Sigma, Lw, Mx, a0, b0, w_code, rng, stats):
+    """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
+    ``stats = [log-likelihood, number of active atoms, fraction of accepted logit moves]``."""
+    update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+    update_atoms(V, R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
+    update_precisions(R, D, S, prec, Mx, a0, b0, rng)
+    K = W.shape[1]
+    if w_code == 1:
+        acc = update_w_ess(W, B, Lw, rng)
+    else:
+        acc = update_w_mh(W, B, Sigma, Lw, rng, w_code == 2)
+    stats[0] = log_likelihood(R, prec[1])
+    active = 0
+    for k in range(K):
+        for i in range(B.shape[0]):
+            if B[i, k]:
+                active += 1
+                break
+    stats[1] = active
+    stats[2] = acc / K
+
+
+@njit(cache=True)
+def redraw_data(V, R, D, B, S, g_xy, rng):
+    """Replace V by a draw from the likelihood ``V = A D + E / sqrt(g_xy)`` and set R = V - A D.
+
+    Draw order: one (N, M) array of standard normals. Used by the Geweke test and for simulation.
+    """
+    E = rng.standard_normal(V.shape) / np.sqrt(g_xy)
+    V[:, :] = _codes_from(B, S) @ D + E
+    R[:, :] = E
+
+
+# ----------------------------------------------------------------------------------------------------------
+# state containers and the sweep-level API
+# ----------------------------------------------------------------------------------------------------------
+class BSRState(NamedTuple):
+    """Sampler state; arrays are mutated in place by the updates (layout in the module docstring)."""
+
+    D: np.ndarray
+    norms: np.ndarray
+    B: np.ndarray
+    S: np.ndarray
+    W: np.ndarray
+    R: np.ndarray
+    prec: np.ndarray  # [g_s, g_xy, g_x, g_y]
+
+
+class BSRData(NamedTuple):
+    """Observed data and the fixed logit prior: ``V = [X | Y]`` (N, M), ``Mx``, ``Sigma`` and its factor."""
+
+    V: np.ndarray
+    Mx: int
+    Sigma: np.ndarray
+    Lw: np.ndarray
+
+
+class BSRHyper(NamedTuple):
+    """Gamma(a0, b0) (shape, rate) hyper-prior of all four precisions."""
+
+    a0: float = 1e-6
+    b0: float = 1e-6
+
+
+def gibbs_sweep(state, data, hyper, rng, w_update="mh"):
+    """Run one full Gibbs sweep (a single jitted call); returns ``(state, stats)``.
+
+    ``state`` is updated in place and returned; ``stats`` is ``[log-likelihood, active atoms, acceptance]``.
+    ``w_update`` is ``"mh"`` (corrected MH), ``"ess"`` (elliptical slice) or ``"paper-as-printed"``.
+    """
+    if w_update not in W_UPDATES:
+        raise InputError(f"w_update must be one of {sorted(W_UPDATES)}; got {w_update!r}")
+    stats = np.zeros(3)
+    _sweep(data.V, state.R, state.D, state.norms, state.B, state.S, state.W, state.prec, data.Sigma, data.Lw,
+           data.Mx, float(hyper.a0), float(hyper.b0), W_UPDATES[w_update], rng, stats)
+    return state, stats
+
+
+def draw_from_prior(N, K, Mx, My, Sigma, Lw, a0, b0, rng):
+    """Draw (state, V) from the joint prior (precisions, atoms, logits, codes, data). Needs proper a0, b0."""
+    M = Mx + My
+    prec = np.array([rng.gamma(a0, 1.0 / b0) for _ in range(4)])
+    D = np.empty((K, M))
+    D[:, :Mx] = rng.standard_normal((K, Mx)) / np.sqrt(prec[2])
+    D[:, Mx:] = rng.standard_normal((K, My)) / np.sqrt(prec[3])
+    W = Lw @ rng.standard_normal((N, K))
+    B = (rng.random((N, K)) < 1.0 / (1.0 + np.exp(-W))).astype(np.int8)
+    S = rng.standard_normal((N, K)) / np.sqrt(prec[0])
+    V = (B * S) @ D + rng.standard_normal((N, M)) / np.sqrt(prec[1])
+    R = V - (B * S) @ D
+    state = BSRState(D=D, norms=np.einsum("km,km->k", D, D), B=B, S=S, W=W, R=R, prec=prec)
+    return state, V
+
+
+# ----------------------------------------------------------------------------------------------------------
+# logit prior
+# ----------------------------------------------------------------------------------------------------------
+def logit_prior_cov(Y):
+    """Sigma_w(i, j) = exp(-||y_i - y_j|| / eta), eta = 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1)) (paper, Sec. IV)."""
+    Y = np.asarray(Y, dtype=float)
+    N = Y.shape[0]
+    sq = np.einsum("ij,ij->i", Y, Y)
+    d2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * Y @ Y.T, 0.0)
+    np.fill_diagonal(d2, 0.0)
+    eta = d2[np.triu_indices(N, 1)].sum() * 2.0 / (N * (N - 1)) if N > 1 else 1.0
+    if not eta > 0.0:
+        eta = 1.0  # all poses identical: the kernel is constant; any eta gives the same matrix
+    return np.exp(-np.sqrt(d2) / eta), eta
+
+
+def cholesky_with_jitter(Sigma, eta=None, max_tries=8):
+    """Lower Cholesky factor of Sigma, adding jitter 1e-6 * mean(diag) and growing it x10 on failure.
+
+    Returns ``(L, jitter)``; raises :class:`SamplerError` naming eta and N after ``max_tries`` failures.
+    """
+    N = Sigma.shape[0]
+    scale = float(np.mean(np.diag(Sigma))) if N else 1.0
+    try:
+        return np.linalg.cholesky(Sigma), 0.0
+    except np.linalg.LinAlgError:
+        pass
+    jitter = 1e-6 * scale
+    for _ in range(max_tries):
+        try:
+            return np.linalg.cholesky(Sigma + jitter * np.eye(N)), jitter
+        except np.linalg.LinAlgError:
+            jitter *= 10.0
+    raise SamplerError(
+        f"Sigma_w (N={N}, eta={eta!r}) is not positive definite even with jitter {jitter / 10:.3g} "
+        f"(= {jitter / 10 / scale:.3g} x mean diagonal); check for non-finite or degenerate training poses"
+    )
+
+
+# ----------------------------------------------------------------------------------------------------------
+# prediction
+# ----------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _splitmix(state):
+    """One step of splitmix64 (Steele, Lea & Flood 2014): returns (new state, 64-bit output)."""
+    state = state + np.uint64(0x9E3779B97F4A7C15)
+    z = state
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return state, z ^ (z >> np.uint64(31))
+
+
+@njit(cache=True)
+def _uniform(state):
+    """A uniform on [0, 1) with 53 random bits."""
+    state, z = _splitmix(state)
+    return state, np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def _normal(state):
+    """A standard normal by the Box-Muller transform."""
+    state, u1 = _uniform(state)
+    state, u2 = _uniform(state)
+    return state, np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+
+
+@njit(cache=True)
+def point_seeds(Xbits, seed):
+    """A 64-bit stream seed per row of ``Xbits`` (the rows' float64 bits as uint64), mixed with ``seed``."""
+    T = Xbits.shape[0]
+    out = np.empty(T, dtype=np.uint64)
+    for t in range(T):
+        h = np.uint64(seed)
+        for m in range(Xbits.shape[1]):
+            h, z = _splitmix(h ^ Xbits[t, m])
+            h = z
+        out[t] = h
+    return out
+
+
+@njit(cache=True)
+def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll):
+    """Posterior predictive draws of y for every test point and retained sample.
+
+    For test point t and sample l: ``w_t = mean_{i in J_t} W^l[i, :]`` (J_t = its neighbours, ``nbr[t]``);
+    ``n_sweeps`` sweeps of the (b, s) block update restricted to the feature rows, from zero codes;
+    ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
+    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]``.
+    Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
+    """
+    T, Mx = Xt.shape
+    L, K, _ = Dx.shape
+    nj = nbr.shape[1]
+    tau = np.empty((L, K))
+    half_log = np.empty((L, K))
+    sd_on = np.empty((L, K))
+    nx = np.empty((L, K))
+    for l in range(L):
+        for k in range(K):
+            nx[l, k] = _dot(Dx[l, k], Dx[l, k])
+            tau[l, k] = gs[l] + gxy[l] * nx[l, k]
+            half_log[l, k] = 0.5 * np.log(gs[l] / tau[l, k])
+            sd_on[l, k] = 1.0 / np.sqrt(tau[l, k])
+    r = np.empty(Mx)
+    alpha = np.empty(K)
+    wt = np.empty(K)
+    for t in range(T):
+        st = seeds[t]
+        for l in range(L):
+            wt[:] = 0.0
+            for q in range(nj):
+                wt += Ws[l, nbr[t, q]]
+            wt /= nj
+            r[:] = Xt[t]
+            alpha[:] = 0.0
+            g_s = gs[l]
+            g_xy = gxy[l]
+            for _ in range(n_sweeps):
+                for k in range(K):
+                    d = Dx[l, k]
+                    a_old = alpha[k]
+                    proj = _dot(d, r) + a_old * nx[l, k]
+                    mu = g_xy * proj / tau[l, k]
+                    logit = wt[k] + half_log[l, k] + 0.5 * tau[l, k] * mu * mu
+                    st, u = _uniform(st)
+                    if u < _sigmoid(logit):
+                        st, z = _normal(st)
+                        a_new = mu + z * sd_on[l, k]
+                    else:
+                        a_new = 0.0  # s of an inactive atom does not enter the prediction
+                    delta = a_old - a_new
+                    if delta != 0.0:
+                        _axpy(delta, d, r)
+                    alpha[k] = a_new
+            out_y[t, l, :] = 0.0
+            for k in range(K):
+                if alpha[k] != 0.0:
+                    _axpy(alpha[k], Dy[l, k], out_y[t, l])
+            out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * _dot(r, r)
+
+
+@njit(cache=True)
+def nearest_neighbours(Xt, Xtr, j):
+    """Indices (T, j) of the j nearest rows of Xtr for each row of Xt (Euclidean; ties by lower index).
+
+    Computed row by row, so a test point's neighbours do not depend on the other points in the batch.
+    """
+    T = Xt.shape[0]
+    N, Mx = Xtr.shape
+    out = np.empty((T, j), dtype=np.int64)
+    dist = np.empty(N)
+    for t in range(T):
+        for i in range(N):
+            acc = 0.0
+            for m in range(Mx):
+                diff = Xt[t, m] - Xtr[i, m]
+                acc += diff * diff
+            dist[i] = acc
+        order = np.argsort(dist, kind="mergesort")
+        out[t, :] = order[:j]
+    return out
