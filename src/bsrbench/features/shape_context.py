@@ -53,7 +53,7 @@ def shape_contexts(points, n_radial=5, n_angular=12, r_inner=0.125, r_outer=2.0)
         raise InputError("points: all points coincide; shape contexts need distinct points")
     r = dist / mean_dist
     edges = np.logspace(np.log10(r_inner), np.log10(r_outer), n_radial)
-    q = (r[..., None] < edges).sum(axis=-1)
+    q = n_radial - np.searchsorted(edges, r, side="right")  # number of edges > r
     theta = np.arctan2(diff[..., 1], diff[..., 0]) % (2 * np.pi)
     a_bin = np.minimum((theta * (n_angular / (2 * np.pi))).astype(np.int64), n_angular - 1)
     valid = off & (q > 0)

@@ -127,8 +127,9 @@ class Ellipsoid:
     centre = mean of ``centre_joints`` + ``centre_offset`` * (unit vector from ``axis_joints[0]`` to
     ``axis_joints[1]``). Its first axis follows that same direction, its second is the direction from
     ``lateral_joints[1]`` (right) to ``lateral_joints[0]`` (left) made orthogonal to the first, its third is their
-    cross product. ``semi_axes`` are the three semi-axis lengths; a semi-axis given as ``None`` in
-    ``length_factor_axis0`` form is replaced by ``length_factor`` * the distance between the axis joints.
+    cross product. ``semi_axes`` are the three semi-axis lengths (motion units); a first semi-axis of ``None``
+    means ``length_factor`` * the current distance between the axis joints (the torso follows the spine's
+    length).
     """
 
     name: str
