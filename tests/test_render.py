@@ -61,21 +61,16 @@ def ellipsoid(body, name):
 
 
 def world_extent(body, pos, axis):
-    """Extent of the body along a world axis for an upright T-pose (ellipsoid axes = world y, x, z)."""
-    rel = pos[0] - pos[0, 0]
-    ends = rel[body.capsule_joints, axis]  # (C, 2)
+    """Extent of the body along a world axis: capsule ends +- radii, ellipsoid centre +- |A^T e| (the half
+    extent of {c + A u : |u| <= 1} along the unit vector e)."""
+    rel = pos - pos[:, :1]
+    ends = rel[0][body.capsule_joints, axis]  # (C, 2)
     r = body.capsule_radii[:, None]
     lo, hi = (ends - r).min(), (ends + r).max()
-    semi_index = {1: 0, 0: 1, 2: 2}[axis]
     for e in body.ellipsoids:
-        centre = rel[list(e.centre_joints)].mean(axis=0)
-        a0, a1 = e.axis_joints
-        up = rel[a1] - rel[a0]
-        centre = centre + e.centre_offset * up / np.linalg.norm(up)
-        semi = e.semi_axes[semi_index]
-        if semi is None:
-            semi = e.length_factor * np.linalg.norm(up)
-        lo, hi = min(lo, centre[axis] - semi), max(hi, centre[axis] + semi)
+        centre, axes = ellipsoid_frames(e, rel)
+        half = np.linalg.norm(axes[0][axis])
+        lo, hi = min(lo, centre[0, axis] - half), max(hi, centre[0, axis] + half)
     return hi - lo
 
 

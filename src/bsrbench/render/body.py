@@ -50,10 +50,17 @@ PART_RADIUS = {
 HEAD_SEMI_AXES = (0.068, 0.052, 0.060)
 HEAD_CENTRE_OFFSET = 0.040
 
-#: Torso ellipsoid (root to the base of the neck): semi-axis along the spine as a fraction of the root-to-neck
-#: distance, and left-right / front-back semi-axes as fractions of the stature.
-TORSO_LENGTH_FACTOR = 0.56
-TORSO_SEMI_AXES = (0.098, 0.066)
+#: Torso ellipsoid, along the trunk from the middle of the hip joints to the middle of the shoulder joints (length
+#: L): centre at ``TORSO_CENTRE_AT`` * L, semi-axis ``TORSO_LENGTH_FACTOR`` * L along the trunk, left-right and
+#: front-back semi-axes as fractions of the stature.
+TORSO_CENTRE_AT = 0.55
+TORSO_LENGTH_FACTOR = 0.55
+TORSO_SEMI_AXES = (0.095, 0.062)
+
+#: Pelvis ellipsoid, centred above the middle of the hip joints: semi-axes (along the trunk, left-right,
+#: front-back) and the centre's offset along the trunk, as fractions of the stature.
+PELVIS_SEMI_AXES = (0.085, 0.095, 0.068)
+PELVIS_CENTRE_OFFSET = 0.03
 
 #: Parts whose bones are not drawn (too small to matter at silhouette resolution, or inside the head).
 SKIPPED_PARTS = frozenset({"finger", "eye", "head"})
@@ -124,19 +131,20 @@ def joint_part(name, is_root):
 class Ellipsoid:
     """An ellipsoid placed per frame from joint positions.
 
-    centre = mean of ``centre_joints`` + ``centre_offset`` * (unit vector from ``axis_joints[0]`` to
-    ``axis_joints[1]``). Its first axis follows that same direction, its second is the direction from
-    ``lateral_joints[1]`` (right) to ``lateral_joints[0]`` (left) made orthogonal to the first, its third is their
-    cross product. ``semi_axes`` are the three semi-axis lengths (motion units); a first semi-axis of ``None``
-    means ``length_factor`` * the current distance between the axis joints (the torso follows the spine's
-    length).
+    Its first axis runs from ``axis_from`` (the mean of those joints) to ``axis_to`` (the mean of those joints),
+    of current length L; the centre is ``axis_from + centre_at * (axis_to - axis_from)`` moved by
+    ``centre_offset`` along the axis. The second axis is the direction from ``lateral_joints[1]`` (right) to
+    ``lateral_joints[0]`` (left), made orthogonal to the first; the third is their cross product. ``semi_axes``
+    are the three semi-axis lengths in motion units; a first semi-axis of ``None`` means ``length_factor * L``
+    (the torso follows the spine's current length).
     """
 
     name: str
-    centre_joints: tuple
-    axis_joints: tuple
+    axis_from: tuple
+    axis_to: tuple
     lateral_joints: tuple | None
     semi_axes: tuple
+    centre_at: float = 0.5
     centre_offset: float = 0.0
     length_factor: float | None = None
 
@@ -215,36 +223,55 @@ def build_body_model(parents, joint_names, stature):
     root = int(roots[0]) if len(roots) else 0
     shoulders = (find("upperarm", "L"), find("upperarm", "R"))
     thighs = (find("thigh", "L"), find("thigh", "R"))
+    necks, heads = find("neck"), find("head")
     lateral = None
     if shoulders[0] and shoulders[1]:
         lateral = (shoulders[0][0], shoulders[1][0])
     elif thighs[0] and thighs[1]:
         lateral = (thighs[0][0], thighs[1][0])
-    necks = find("neck")
-    if necks:
-        neck_base = necks[0]
+    # The trunk runs from between the hip joints to between the shoulder joints (the root's own height in
+    # the body differs between skeletons: the 3dsMax root sits above the hip joints, the Daz one between them).
+    hips = (thighs[0][0], thighs[1][0]) if thighs[0] and thighs[1] else (root,)
+    if shoulders[0] and shoulders[1]:
+        top = (shoulders[0][0], shoulders[1][0])
+    elif necks:
+        top = (necks[0],)
+    else:
+        top = None
+    if top is not None:
         ellipsoids.append(
             Ellipsoid(
                 name="torso",
-                centre_joints=(root, neck_base),
-                axis_joints=(root, neck_base),
+                axis_from=hips,
+                axis_to=top,
                 lateral_joints=lateral,
                 semi_axes=(None, TORSO_SEMI_AXES[0] * stature, TORSO_SEMI_AXES[1] * stature),
+                centre_at=TORSO_CENTRE_AT,
                 length_factor=TORSO_LENGTH_FACTOR,
             )
         )
-    heads = find("head")
+        ellipsoids.append(
+            Ellipsoid(
+                name="pelvis",
+                axis_from=hips,
+                axis_to=top,
+                lateral_joints=lateral,
+                semi_axes=tuple(a * stature for a in PELVIS_SEMI_AXES),
+                centre_offset=PELVIS_CENTRE_OFFSET * stature,
+                centre_at=0.0,
+            )
+        )
     if heads:
         head = heads[0]
         p = int(parents[head])
-        axis = (p if p >= 0 else head, head)
         ellipsoids.append(
             Ellipsoid(
                 name="head",
-                centre_joints=(head,),
-                axis_joints=axis,
+                axis_from=(p if p >= 0 else head,),
+                axis_to=(head,),
                 lateral_joints=lateral,
                 semi_axes=tuple(a * stature for a in HEAD_SEMI_AXES),
+                centre_at=1.0,
                 centre_offset=HEAD_CENTRE_OFFSET * stature,
             )
         )
@@ -284,9 +311,9 @@ def estimate_stature(first_frame, parents, joint_names):
 
 def ellipsoid_frames(ell, positions):
     """Centres (F, 3) and axis matrices (F, 3, 3) (columns = semi-axis vectors) of an ellipsoid over frames."""
-    centre = positions[:, list(ell.centre_joints), :].mean(axis=1)
-    a0, a1 = ell.axis_joints
-    up = positions[:, a1, :] - positions[:, a0, :]
+    base = positions[:, list(ell.axis_from), :].mean(axis=1)
+    up = positions[:, list(ell.axis_to), :].mean(axis=1) - base
+    centre = base + ell.centre_at * up
     length = np.linalg.norm(up, axis=1)
     world_up = np.array([0.0, 1.0, 0.0])
     ok = length > 1e-9

@@ -29,7 +29,7 @@ def save_montage(masks, path, n=16, titles=None):
     cols = int(np.ceil(np.sqrt(len(idx))))
     rows = int(np.ceil(len(idx) / cols))
     h, w = masks.shape[1:]
-    fig, axes = plt.subplots(rows, cols, figsize=(1.6 * cols * w / max(h, w) + 0.2, 1.8 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(2.4 * cols * w / max(h, w) + 0.2, 2.6 * rows), squeeze=False)
     for ax in axes.ravel():
         ax.set_axis_off()
     for ax, f in zip(axes.ravel(), idx):
