@@ -131,3 +131,26 @@ def test_features_rules_end_to_end(tmp_path):
     assert not acro["available"] and acro["missing"] == ["downloads/49/49_21.amc", "downloads/49/49.asf"]
     assert "downloads/49/49_21.amc" in acro["command"]
     assert by[("hsc", "Walk")]["activity"] is None and by[("hsc", "Walk")]["command"] is None
+
+
+def test_bad_data_config_is_rejected_naming_the_key(tmp_path):
+    cfg = _config(tmp_path, "file:///nowhere")
+    cfg["datasets"]["hsc"]["golf"]["files"] = [str(CMU / "12_02.bvh")]
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(cfg))
+    (tmp_path / "Snakefile").write_text(SNAKEFILE)
+    r = subprocess.run(
+        [str(SNAKEMAKE), "-n", "--cores", "1", "--directory", str(tmp_path), "--snakefile", str(tmp_path / "Snakefile")],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode != 0
+    out = r.stdout + r.stderr
+    assert "config datasets.hsc.golf: file" in out and "does not end in .mat (format: mat)" in out
+    cfg = _config(tmp_path, "file:///nowhere")
+    cfg["features"]["codebook"]["n_centres"] = 1
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(cfg))
+    r = subprocess.run(
+        [str(SNAKEMAKE), "-n", "--cores", "1", "--directory", str(tmp_path), "--snakefile", str(tmp_path / "Snakefile")],
+        capture_output=True, text=True, timeout=120,
+    )
+    out = r.stdout + r.stderr
+    assert r.returncode != 0 and "n_centres" in out and "minimum" in out
