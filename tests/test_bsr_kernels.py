@@ -1,0 +1,292 @@
+"""BSR kernels: equal to the NumPy reference draw for draw, and each conditional equal to a brute-force one."""
+
+import naive
+import numpy as np
+import pytest
+from scipy import stats
+from scipy.special import expit
+
+from bsrbench.models import _bsr_kernels as kern
+
+
+def _problem(seed, N=7, K=5, Mx=4, My=3, a=3.0, b=3.0):
+    rng = np.random.default_rng(seed)
+    Yk = rng.standard_normal((N, 2))
+    Sigma, eta = kern.logit_prior_cov(Yk)
+    Lw, _ = kern.cholesky_with_jitter(Sigma, eta)
+    state, V = kern.draw_from_prior(N, K, Mx, My, Sigma, Lw, a, b, rng)
+    data = kern.BSRData(V=V, Mx=Mx, Sigma=Sigma, Lw=Lw)
+    return state, data, kern.BSRHyper(a, b)
+
+
+def _copy(state):
+    return kern.BSRState(*[np.array(a, copy=True) for a in state])
+
+
+def _assert_states_close(s1, s2):
+    for name, a, b in zip(kern.BSRState._fields, s1, s2):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9, err_msg=name)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# kernels == naive reference, same Generator
+# ---------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1])
+def test_codes_match_naive(seed):
+    s1, data, _ = _problem(seed)
+    s2 = _copy(s1)
+    p = s1.prec
+    kern.update_codes(s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(seed + 10))
+    naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(seed + 10))
+    _assert_states_close(s1, s2)
+    # the in-place residual equals a fresh one
+    np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
+
+
+@pytest.mark.parametrize("My", [3, 0])
+def test_atoms_match_naive(My):
+    s1, data, _ = _problem(3, My=My)
+    s2 = _copy(s1)
+    p = s1.prec
+    kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(5))
+    naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
+                       np.random.default_rng(5))
+    _assert_states_close(s1, s2)
+
+
+def test_atoms_blocked_solves_large_k():
+    """K larger than the block size of the triangular solves."""
+    s1, data, _ = _problem(4, N=30, K=101, Mx=6, My=5)
+    s2 = _copy(s1)
+    p = s1.prec
+    kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6))
+    naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
+                       np.random.default_rng(6))
+    _assert_states_close(s1, s2)
+
+
+def test_precisions_match_naive():
+    s, data, h = _problem(5)
+    p1, p2 = s.prec.copy(), s.prec.copy()
+    kern.update_precisions(s.R, s.D, s.S, p1, data.Mx, h.a0, h.b0, np.random.default_rng(1))
+    naive.update_precisions(s.R, s.D, s.S, p2, data.Mx, h.a0, h.b0, np.random.default_rng(1))
+    np.testing.assert_allclose(p1, p2, rtol=1e-12)
+    assert not np.allclose(p1, s.prec)
+
+
+@pytest.mark.parametrize("paper", [False, True])
+def test_w_mh_matches_naive(paper):
+    s, data, _ = _problem(6, N=6, K=40)
+    W1, W2 = s.W.copy(), s.W.copy()
+    a1 = kern.update_w_mh(W1, s.B, data.Sigma, data.Lw, np.random.default_rng(2), paper)
+    a2 = naive.update_w_mh(W2, s.B, data.Sigma, data.Lw, np.random.default_rng(2), paper)
+    assert a1 == a2
+    assert 0 < a1 < 40  # both branches exercised
+    np.testing.assert_allclose(W1, W2, rtol=1e-9, atol=1e-12)
+
+
+def test_w_ess_matches_naive():
+    s, data, _ = _problem(7, N=6, K=30)
+    W1, W2 = s.W.copy(), s.W.copy()
+    kern.update_w_ess(W1, s.B, data.Lw, np.random.default_rng(3))
+    naive.update_w_ess(W2, s.B, data.Lw, np.random.default_rng(3))
+    np.testing.assert_allclose(W1, W2, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(W1, s.W)
+
+
+@pytest.mark.parametrize("w_update", ["mh", "ess", "paper-as-printed"])
+def test_sweeps_match_naive(w_update):
+    s1, data, h = _problem(8)
+    s2 = _copy(s1)
+    r1, r2 = np.random.default_rng(9), np.random.default_rng(9)
+    for _ in range(3):
+        _, st1 = kern.gibbs_sweep(s1, data, h, r1, w_update)
+        st2 = naive.gibbs_sweep(s2, data, h, r2, w_update)
+        np.testing.assert_allclose(st1, st2, rtol=1e-9)
+        V1, V2 = data.V.copy(), data.V.copy()
+        kern.redraw_data(V1, s1.R, s1.D, s1.B, s1.S, s1.prec[1], r1)
+        naive.redraw_data(V2, s2.R, s2.D, s2.B, s2.S, s2.prec[1], r2)
+        np.testing.assert_allclose(V1, V2, rtol=1e-10)
+    _assert_states_close(s1, s2)
+
+
+def test_predict_kernel_matches_naive():
+    rng = np.random.default_rng(11)
+    L, K, Mx, My, N, T, j = 3, 6, 4, 2, 9, 5, 3
+    Dx, Dy = rng.standard_normal((L, K, Mx)), rng.standard_normal((L, K, My))
+    Ws = rng.standard_normal((L, N, K))
+    gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
+    Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
+    nbr = kern.nearest_neighbours(Xt, Xtr, j)
+    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(123))
+    out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
+    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, 4, seeds, out_y, out_ll)
+    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 4, 123)
+    np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
+    # a point's stream does not depend on the batch
+    sub_y, _ = np.empty((1, L, My)), np.empty((1, L))
+    kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, 4, seeds[2:3], sub_y, np.empty((1, L)))
+    np.testing.assert_array_equal(sub_y[0], out_y[2])
+
+
+def test_splitmix_stream_is_uniform():
+    """The prediction stream: uniform on [0, 1) and Box-Muller normals are standard normal."""
+    s = naive.SplitMix(2024)
+    u = np.array([s.uniform() for _ in range(4000)])
+    z = np.array([s.normal() for _ in range(4000)])
+    assert stats.kstest(u, "uniform").pvalue > 1e-3
+    assert stats.kstest(z, "norm").pvalue > 1e-3
+
+
+# ---------------------------------------------------------------------------------------------------------
+# conditionals against brute-force grids (the target written from the model's joint density)
+# ---------------------------------------------------------------------------------------------------------
+def _grid_cdf(grid, logdens):
+    p = np.exp(logdens - logdens.max())
+    c = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(grid))])
+    c /= c[-1]
+    return lambda x: np.interp(x, grid, c)
+
+
+def test_code_pair_against_grid():
+    """(b, s) for one point and atom: the joint p(b, s | -) ∝ sig(z w) N(s; 0, 1/g_s) N(v; d b s, 1/g_xy I)."""
+    rng = np.random.default_rng(21)
+    M, n_rep = 5, 40000
+    d = rng.standard_normal(M) * 0.6
+    v = 0.8 * d + 0.3 * rng.standard_normal(M)
+    w, g_s, g_xy = -0.4, 1.5, 2.0
+    # n_rep identical copies of the same (point, atom): one call gives n_rep independent draws
+    R = np.tile(v, (n_rep, 1))
+    D = d[None, :].copy()
+    B = np.zeros((n_rep, 1), dtype=np.int8)
+    S = np.zeros((n_rep, 1))
+    W = np.full((n_rep, 1), w)
+    kern.update_codes(R, D, np.array([d @ d]), B, S, W, g_s, g_xy, np.random.default_rng(22))
+
+    grid = np.linspace(-6, 6, 20001)
+
+    def log_joint(b, s):
+        resid = v[None, :] - b * s[:, None] * d[None, :]
+        return (np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 + 0.5 * np.log(g_s)
+                - 0.5 * g_xy * np.sum(resid**2, axis=1))
+
+    l1, l0 = log_joint(1, grid), log_joint(0, grid)
+    m = max(l1.max(), l0.max())
+    p1 = np.trapezoid(np.exp(l1 - m), grid) / (np.trapezoid(np.exp(l1 - m), grid) + np.trapezoid(np.exp(l0 - m), grid))
+    on = B[:, 0] == 1
+    assert 0.1 < p1 < 0.9
+    assert stats.binomtest(int(on.sum()), n_rep, p1).pvalue > 1e-3
+    assert stats.kstest(S[on, 0], _grid_cdf(grid, l1)).pvalue > 1e-3
+    assert stats.kstest(S[~on, 0], _grid_cdf(grid, l0)).pvalue > 1e-3
+    # residual bookkeeping: r = v - d b s
+    np.testing.assert_allclose(R, v - (B * S) * d[None, :], atol=1e-12)
+
+
+def test_g_xy_against_grid():
+    """g_xy | - ∝ Gamma(g; a, b) prod N(r; 0, 1/g) on a grid, vs repeated kernel draws."""
+    s, data, h = _problem(23, N=4, K=3, Mx=2, My=2)
+    rng = np.random.default_rng(24)
+    draws = np.empty(20000)
+    prec = s.prec.copy()
+    for t in range(draws.size):
+        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng)
+        draws[t] = prec[1]
+    rr, n = np.sum(s.R**2), s.R.size
+    grid = np.linspace(1e-6, draws.max() * 3, 40001)
+    logd = (h.a0 - 1) * np.log(grid) - h.b0 * grid + 0.5 * n * np.log(grid) - 0.5 * grid * rr
+    assert stats.kstest(draws, _grid_cdf(grid, logd)).pvalue > 1e-3
+
+
+def test_atom_rows_against_grid():
+    """Two atoms, one feature row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square)."""
+    rng = np.random.default_rng(25)
+    N, K, Mx = 6, 2, 1
+    B = np.ones((N, K), dtype=np.int8)
+    S = rng.standard_normal((N, K))
+    V = rng.standard_normal((N, Mx))
+    g_xy, g_x = 1.7, 0.9
+    n_rep = 30000
+    draws = np.empty((n_rep, K))
+    D = np.zeros((K, Mx))
+    R, norms = V.copy(), np.zeros(K)
+    for t in range(n_rep):
+        kern.update_atoms(V, R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+        draws[t] = D[:, 0]
+    A = B * S
+    lim = 1.2 * np.abs(draws).max()
+    g = np.linspace(-lim, lim, 2401)
+    d1, d2 = np.meshgrid(g, g, indexing="ij")
+    # sum_i (x_i - d1 a_i1 - d2 a_i2)^2 written out as a quadratic form in (d1, d2)
+    x = V[:, 0]
+    sq = (x @ x - 2 * d1 * (A[:, 0] @ x) - 2 * d2 * (A[:, 1] @ x) + d1**2 * (A[:, 0] @ A[:, 0])
+          + 2 * d1 * d2 * (A[:, 0] @ A[:, 1]) + d2**2 * (A[:, 1] @ A[:, 1]))
+    logd = -0.5 * g_xy * sq - 0.5 * g_x * (d1**2 + d2**2)
+    dens = np.exp(logd - logd.max())
+    edges = np.quantile(draws[:, 0], np.linspace(0, 1, 7)), np.quantile(draws[:, 1], np.linspace(0, 1, 7))
+    for e in edges:
+        e[0], e[-1] = -lim, lim
+    obs, _, _ = np.histogram2d(draws[:, 0], draws[:, 1], bins=edges)
+    i1, i2 = np.digitize(g, edges[0][1:-1]), np.digitize(g, edges[1][1:-1])
+    expected = np.zeros_like(obs)
+    np.add.at(expected, (i1[:, None].repeat(len(g), 1), i2[None, :].repeat(len(g), 0)), dens)
+    expected *= n_rep / expected.sum()
+    chi2 = np.sum((obs - expected) ** 2 / expected)
+    assert stats.chi2.sf(chi2, obs.size - 1) > 1e-3
+
+
+@pytest.mark.parametrize("w_update", ["mh", "ess"])
+def test_w_update_leaves_target_invariant(w_update):
+    """Exact draws of w_k (rejection from the prior) stay exact after one update: marginal of w_1 vs a grid.
+
+    Target: N(w; 0, Sigma) prod_i sig(z_i w_i), N = 2, many independent atoms at once.
+    """
+    rng = np.random.default_rng(26)
+    Sigma = np.array([[4.0, 2.0], [2.0, 4.0]])
+    Lw = np.linalg.cholesky(Sigma)
+    z = np.array([1.0, -1.0])
+    K = 30000
+    prop = Lw @ rng.standard_normal((2, 8 * K))
+    keep = rng.random(8 * K) < np.prod(expit(z[:, None] * prop), axis=0)
+    W = np.ascontiguousarray(prop[:, keep][:, :K])
+    assert W.shape == (2, K)
+    B = np.tile((z > 0).astype(np.int8)[:, None], (1, K))
+    if w_update == "mh":
+        acc = kern.update_w_mh(W, B, Sigma, Lw, rng, False)
+        assert 0.05 * K < acc < K
+    else:
+        kern.update_w_ess(W, B, Lw, rng)
+    g = np.linspace(-15, 15, 1201)
+    w1, w2 = np.meshgrid(g, g, indexing="ij")
+    Si = np.linalg.inv(Sigma)
+    logd = (-0.5 * (Si[0, 0] * w1**2 + 2 * Si[0, 1] * w1 * w2 + Si[1, 1] * w2**2)
+            + np.log(expit(z[0] * w1)) + np.log(expit(z[1] * w2)))
+    dens = np.exp(logd - logd.max())
+    marg = np.log(dens.sum(axis=1))
+    assert stats.kstest(W[0], _grid_cdf(g, marg)).pvalue > 1e-3
+    assert stats.kstest(W[1], _grid_cdf(g, np.log(dens.sum(axis=0)))).pvalue > 1e-3
+
+
+def test_logit_prior_cov_and_jitter():
+    rng = np.random.default_rng(27)
+    Y = rng.standard_normal((6, 3))
+    Sigma, eta = kern.logit_prior_cov(Y)
+    d = np.linalg.norm(Y[:, None] - Y[None], axis=-1)
+    iu = np.triu_indices(6, 1)
+    assert eta == pytest.approx(2 * np.sum(d[iu] ** 2) / (6 * 5))
+    np.testing.assert_allclose(Sigma, np.exp(-d / eta), atol=1e-12)
+    # duplicated poses: singular; escalated jitter makes it factorable
+    Sig2, eta2 = kern.logit_prior_cov(np.vstack([Y, Y[:1]]))
+    L, jit = kern.cholesky_with_jitter(Sig2, eta2)
+    assert jit > 0
+    np.testing.assert_allclose(L @ L.T, Sig2 + jit * np.eye(7), atol=1e-10)
+    bad = Sigma.copy()
+    bad[0, 1] = bad[1, 0] = 50.0
+    with pytest.raises(kern.SamplerError, match=r"Sigma_w \(N=6, eta=1\.5"):
+        kern.cholesky_with_jitter(bad, 1.5)
+
+
+def test_gibbs_sweep_rejects_unknown_update():
+    s, data, h = _problem(0)
+    with pytest.raises(ValueError, match="w_update must be one of .* got 'gibbs'"):
+        kern.gibbs_sweep(s, data, h, np.random.default_rng(0), "gibbs")
