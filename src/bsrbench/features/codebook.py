@@ -57,7 +57,9 @@ def learn_codebook(descriptor_list, n_centres=100, seed=0, max_descriptors=None,
         raise InputError(f"n_centres: expected a positive integer, got {n_centres!r}")
     if max_descriptors is not None:
         if int(max_descriptors) != max_descriptors or max_descriptors < n_centres:
-            raise InputError(f"max_descriptors: expected an integer >= n_centres ({n_centres}), got {max_descriptors!r}")
+            raise InputError(
+                f"max_descriptors: expected an integer >= n_centres ({n_centres}), got {max_descriptors!r}"
+            )
         if len(x) > max_descriptors:
             rng = np.random.default_rng(seed)
             x = x[np.sort(rng.choice(len(x), size=int(max_descriptors), replace=False))]
