@@ -6,7 +6,7 @@ import pytest
 from bsrbench.errors import InputError
 from bsrbench.render import fit_camera, joint_part, render_silhouettes, save_montage
 from bsrbench.render._kernels import rasterize, rasterize_numpy
-from bsrbench.render.body import ellipsoid_frames
+from bsrbench.render.body import PART_RADIUS, ellipsoid_frames
 
 STATURE = 170.0
 
@@ -230,6 +230,19 @@ def test_projected_interior_points_are_covered():
     assert mask[rows, cols].all()
     # And the silhouette is not much larger than the union of the primitives (a loose upper bound).
     assert mask.sum() < 1.5 * len(np.unique(rows * 1000 + cols))
+
+
+def test_unknown_joint_names_fall_back_to_generic_capsules():
+    pos, parents, names = t_pose()
+    anonymous = [f"j{k}" for k in range(len(names))]
+    body, cam = fit_camera(pos, parents, anonymous, body_scale=STATURE)
+    assert set(body.capsule_parts) == {"generic"} and body.ellipsoids == ()
+    assert len(body.capsule_joints) == len(names) - 1  # every bone drawn, fingers or not
+    h_px, w_px, _, _ = extent(render_silhouettes(pos, parents, anonymous, body_scale=STATURE)[0])
+    r = body.capsule_radii[0]
+    assert r == pytest.approx(PART_RADIUS["generic"] * STATURE)
+    assert cam.scale * (146 + 2 * r) - 2 <= w_px <= cam.scale * (146 + 2 * r) + 1
+    assert cam.scale * (166 + 2 * r) - 2 <= h_px <= cam.scale * (166 + 2 * r) + 1
 
 
 def test_elevation_looks_down():
