@@ -104,6 +104,12 @@ def test_scale_from_first_frame_stature_and_unit_invariance():
     # Joints span y = -90 (foot ends) .. +76 (head end); with the skull top estimated from the head joint
     # (62 above the root) the stature lies between the joint span and that span plus a head.
     assert 166 <= body.stature < 185
+    # A sequence that starts crouched (both knees bent 90 deg) still gets the standing height.
+    crouch = bend(bend(pos, names, "lShin", rot("x", 90)), names, "rShin", rot("x", 90))
+    crouch_body, _ = fit_camera(crouch, parents, names)
+    assert crouch_body.stature < body.stature - 30
+    seq_body, _ = fit_camera(np.concatenate([crouch, pos, pos]), parents, names)
+    assert seq_body.stature == body.stature
     a = render_silhouettes(pos, parents, names)
     b = render_silhouettes(pos * 0.0254 + 7.0, parents, names)  # other units and origin: same picture
     assert np.mean(a != b) < 0.002

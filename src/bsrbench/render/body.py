@@ -285,28 +285,33 @@ def build_body_model(parents, joint_names, stature):
     )
 
 
-def estimate_stature(first_frame, parents, joint_names):
-    """Standing height of the skeleton from one frame (J, 3), y up: the vertical extent of the joints, with the
-    top of the head added when the skeleton has a recognised head joint (the head joint of both CMU releases sits
-    at the base of the skull, so the skull top lies about 0.1 stature above it)."""
-    y = first_frame[:, 1]
-    low, high = float(y.min()), float(y.max())
+def estimate_stature(positions, parents, joint_names):
+    """Standing height of the skeleton, in the motion's units, from its joint positions (y up).
+
+    Per frame: the vertical extent of the joints, extended to the top of the skull when a head joint is
+    recognised (the head joint of both CMU releases sits at the base of the skull; the skull top is taken to be
+    ``HEAD_CENTRE_OFFSET + HEAD_SEMI_AXES[0]`` statures above it). The estimate is that of the first frame, or the
+    median over the frames if larger, so a sequence that starts crouched still gets its standing height.
+    ``positions``: (J, 3) one frame, or (F, J, 3).
+    """
+    positions = np.asarray(positions, dtype=float)
+    if positions.ndim == 2:
+        positions = positions[None]
+    y = positions[:, :, 1]
+    low, high = y.min(axis=1), y.max(axis=1)
     extent = high - low
     heads = [j for j, name in enumerate(joint_names) if joint_part(name, parents[j] < 0)[1] == "head"]
-    if heads and extent > 0:
-        y_head = float(y[heads[0]])
-        # head top ~ head joint + (centre offset + vertical semi-axis) * stature; solve the fixed point of
-        # stature = max(high, y_head + k * stature) - low.
+    if heads:
+        # Solve stature = max(high, y_head + k * stature) - low for the stature.
         k = HEAD_CENTRE_OFFSET + HEAD_SEMI_AXES[0]
-        if k < 1:
-            with_head = (y_head - low) / (1 - k)
-            extent = max(extent, with_head)
-    if not np.isfinite(extent) or extent <= 0:
+        extent = np.maximum(extent, (y[:, heads[0]] - low) / (1 - k))
+    stature = max(float(extent[0]), float(np.median(extent)))
+    if not np.isfinite(stature) or stature <= 0:
         raise InputError(
-            f"positions: the first frame has no vertical extent (joint heights span {extent!r}); "
+            f"positions: the joints have no vertical extent (estimated stature {stature!r}); "
             "cannot derive the body size, pass body_scale"
         )
-    return extent
+    return stature
 
 
 def ellipsoid_frames(ell, positions):

@@ -3,7 +3,7 @@
 Pipeline per sequence:
 
 1. ``build_body_model``: capsules around the bones and ellipsoids for head and torso, sized from the stature
-   (``estimate_stature`` on the first frame, or ``body_scale``).
+   (``estimate_stature``: the first frame's height, or the median over frames if larger; or ``body_scale``).
 2. ``fit_camera``: a fixed view direction (azimuth about the vertical axis, then elevation), the root's
    translation removed per frame, and one scale per sequence: ``fill`` * image height / stature pixels per
    length unit, reduced if needed so that every frame of the sequence stays inside the image with a margin; the
@@ -137,7 +137,7 @@ def _prepare(positions, parents, joint_names, image_size, view_azimuth_deg, view
     if not (0 < float(fill) <= 1):
         raise InputError(f"fill: expected a fraction in (0, 1], got {fill!r}")
     if body_scale is None:
-        stature = estimate_stature(positions[0], parents, names)
+        stature = estimate_stature(positions, parents, names)
     else:
         stature = float(body_scale)
         if not np.isfinite(stature) or stature <= 0:
@@ -209,7 +209,8 @@ def render_silhouettes(
     view_azimuth_deg, view_elevation_deg : float
         Fixed camera direction (see the module docstring).
     body_scale : float, optional
-        Stature (standing height) in the motion's units; by default estimated from the first frame.
+        Stature (standing height) in the motion's units; by default ``estimate_stature`` (the first frame's
+        height, or the median frame's if larger).
     fill : float in (0, 1]
         Fraction of the image height the stature takes, reduced automatically when some frame would otherwise
         leave the image.
