@@ -110,6 +110,10 @@ def test_scale_from_first_frame_stature_and_unit_invariance():
     assert crouch_body.stature < body.stature - 30
     seq_body, _ = fit_camera(np.concatenate([crouch, pos, pos]), parents, names)
     assert seq_body.stature == body.stature
+    # Arms raised above the head do not make the body taller.
+    reach = bend(bend(pos, names, "lShldr", rot("z", 80)), names, "rShldr", rot("z", -80))
+    assert reach[0, names.index("lHand_End"), 1] > pos[0, names.index("head_End"), 1] + 20
+    assert fit_camera(np.concatenate([reach] * 3), parents, names)[0].stature == body.stature
     a = render_silhouettes(pos, parents, names)
     b = render_silhouettes(pos * 0.0254 + 7.0, parents, names)  # other units and origin: same picture
     assert np.mean(a != b) < 0.002

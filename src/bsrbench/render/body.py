@@ -62,6 +62,9 @@ TORSO_SEMI_AXES = (0.095, 0.062)
 PELVIS_SEMI_AXES = (0.085, 0.095, 0.068)
 PELVIS_CENTRE_OFFSET = 0.03
 
+#: Parts left out when measuring the stature (raised arms reach above the head).
+ARM_PARTS = frozenset({"collar", "upperarm", "forearm", "hand", "finger"})
+
 #: Parts whose bones are not drawn (too small to matter at silhouette resolution, or inside the head).
 SKIPPED_PARTS = frozenset({"finger", "eye", "head"})
 
@@ -288,7 +291,7 @@ def build_body_model(parents, joint_names, stature):
 def estimate_stature(positions, parents, joint_names):
     """Standing height of the skeleton, in the motion's units, from its joint positions (y up).
 
-    Per frame: the vertical extent of the joints, extended to the top of the skull when a head joint is
+    Per frame: the vertical extent of the joints other than the arms' (``ARM_PARTS``), extended to the top of the skull when a head joint is
     recognised (the head joint of both CMU releases sits at the base of the skull; the skull top is taken to be
     ``HEAD_CENTRE_OFFSET + HEAD_SEMI_AXES[0]`` statures above it). The estimate is that of the first frame, or the
     median over the frames if larger, so a sequence that starts crouched still gets its standing height.
@@ -297,10 +300,14 @@ def estimate_stature(positions, parents, joint_names):
     positions = np.asarray(positions, dtype=float)
     if positions.ndim == 2:
         positions = positions[None]
-    y = positions[:, :, 1]
+    parts = [joint_part(name, parents[j] < 0)[1] for j, name in enumerate(joint_names)]
+    # Raised arms do not make a body taller: use the other joints when arm joints are recognised.
+    core = [j for j, part in enumerate(parts) if part not in ARM_PARTS]
+    y = positions[:, core if len(core) >= 2 else slice(None), 1]
     low, high = y.min(axis=1), y.max(axis=1)
     extent = high - low
-    heads = [j for j, name in enumerate(joint_names) if joint_part(name, parents[j] < 0)[1] == "head"]
+    y = positions[:, :, 1]
+    heads = [j for j, part in enumerate(parts) if part == "head"]
     if heads:
         # Solve stature = max(high, y_head + k * stature) - low for the stature.
         k = HEAD_CENTRE_OFFSET + HEAD_SEMI_AXES[0]
