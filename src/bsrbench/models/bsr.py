@@ -219,13 +219,17 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             try:
                 _, stats = kern.gibbs_sweep(state, data, hyper, rng, self.w_update)
             except (np.linalg.LinAlgError, ZeroDivisionError, ValueError) as exc:
-                raise SamplerError(f"BayesianSR: sampler failed at sweep {it}: {exc}") from exc
+                raise SamplerError(
+                    f"BayesianSR: non-finite or degenerate sampler state at sweep {it} ({exc}); "
+                    f"g_s, g_xy, g_x, g_y = {state.prec.tolist()}; check the scale of X and Y "
+                    f"(standardize=True) and the hyper-priors a0, b0"
+                ) from exc
             g_s, g_xy, g_x, g_y = state.prec
             if not (np.all(np.isfinite(stats)) and np.all(np.isfinite(state.prec)) and np.all(state.prec > 0)):
                 raise SamplerError(
-                    f"BayesianSR: non-finite sampler state at sweep {it}: log-likelihood={stats[0]!r}, "
-                    f"g_s={g_s!r}, g_xy={g_xy!r}, g_x={g_x!r}, g_y={g_y!r}; check the scale of X and Y "
-                    f"(standardize=True) and the hyper-priors a0, b0"
+                    f"BayesianSR: non-finite or degenerate sampler state at sweep {it}: "
+                    f"log-likelihood={stats[0]!r}, g_s={g_s!r}, g_xy={g_xy!r}, g_x={g_x!r}, g_y={g_y!r}; "
+                    f"check the scale of X and Y (standardize=True) and the hyper-priors a0, b0"
                 )
             for name, val in zip(names, (stats[0], g_xy, g_s, g_x, g_y, stats[1], stats[2])):
                 trace[name][it] = val
@@ -251,7 +255,13 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     def _initial_state(V, Mx, K, rng):
         """A random start: W = 0 (every atom on with probability 1/2), codes and atoms at the data scale."""
         N, M = V.shape
-        v2 = max(float(np.mean(V * V)), 1e-12)
+        with np.errstate(over="ignore"):
+            v2 = max(float(np.mean(V * V)), 1e-12)
+        if not np.isfinite(v2):
+            raise SamplerError(
+                "BayesianSR: non-finite or degenerate sampler state at sweep 0 (initial state): the mean square "
+                "of the (standardized) data overflows; use standardize=True or rescale X and Y"
+            )
         g_s, g_xy, g_d = 1.0, 1.0 / v2, K / (2.0 * v2)
         D = np.ascontiguousarray(rng.standard_normal((K, M)) / np.sqrt(g_d))
         B = (rng.random((N, K)) < 0.5).astype(np.int8)

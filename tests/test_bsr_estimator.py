@@ -1,0 +1,228 @@
+"""BayesianSR estimator: scikit-learn contract, bad input, predictions on data drawn from the model, diagnostics."""
+
+import logging
+
+import numpy as np
+import pytest
+from sklearn.utils.estimator_checks import parametrize_with_checks
+
+from bsrbench.errors import InputError, SamplerError
+from bsrbench.models import _bsr_kernels as kern
+from bsrbench.models import diagnostics
+from bsrbench.models.bsr import BayesianSR
+
+SMALL = dict(n_atoms=6, n_neighbors=3, n_iter=30, n_burn_in=15, thin=3, n_predict_sweeps=3, random_state=0)
+
+
+# K = 20 atoms: with 6 the 40-sweep fit of sklearn's regression check stays below its R^2 > 0.5 bar
+@parametrize_with_checks([BayesianSR(**{**SMALL, "n_atoms": 20, "n_iter": 40, "n_burn_in": 20})])
+def test_sklearn_compatible(estimator, check):
+    check(estimator)
+
+
+def _toy(n=40, seed=0):
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((n, 5))
+    Y = X[:, :2] @ rng.standard_normal((2, 3)) + 0.1 * rng.standard_normal((n, 3))
+    return X, Y
+
+
+# ---------------------------------------------------------------------------------------------------------
+# data drawn from the model
+# ---------------------------------------------------------------------------------------------------------
+def _simulate(seed, n_train=150, n_test=300, K=8, Mx=12, My=4):
+    """(X, Y) from the model: logits smooth in a latent 2-D pose u, codes, dictionaries, noise."""
+    rng = np.random.default_rng(seed)
+    n = n_train + n_test
+    u = rng.uniform(-2, 2, size=(n, 2))
+    Sigma, _ = kern.logit_prior_cov(u)
+    Lw, _ = kern.cholesky_with_jitter(Sigma)
+    W = 2.0 * Lw @ rng.standard_normal((n, K))
+    B = (rng.random((n, K)) < 1 / (1 + np.exp(-W))).astype(np.int8)
+    g_s, g_xy = 1.0, 25.0
+    S = rng.standard_normal((n, K)) / np.sqrt(g_s)
+    D = rng.standard_normal((K, Mx + My)) / np.sqrt(Mx + My) * 3
+    V = (B * S) @ D + rng.standard_normal((n, Mx + My)) / np.sqrt(g_xy)
+    truth = dict(Dx=D[:, :Mx], Dy=D[:, Mx:], W=W[:n_train], g_s=g_s, g_xy=g_xy)
+    return V[:n_train, :Mx], V[:n_train, Mx:], V[n_train:, :Mx], V[n_train:, Mx:], truth
+
+
+def _oracle_predict(Xtr, Xte, truth, j, n_copies=30, n_sweeps=10):
+    """The model's prediction with the true dictionaries, logits and precisions (in data units)."""
+    L = n_copies
+    K, Mx = truth["Dx"].shape
+    rep = lambda a: np.ascontiguousarray(np.broadcast_to(a, (L,) + a.shape))  # noqa: E731
+    nbr = kern.nearest_neighbours(np.ascontiguousarray(Xte), np.ascontiguousarray(Xtr), j)
+    seeds = kern.point_seeds(np.ascontiguousarray(Xte).view(np.uint64), np.uint64(7))
+    out_y = np.empty((Xte.shape[0], L, truth["Dy"].shape[1]))
+    kern.predict_kernel(np.ascontiguousarray(Xte), nbr, rep(truth["Dx"]), rep(truth["Dy"]), rep(truth["W"]),
+                        np.full(L, truth["g_s"]), np.full(L, truth["g_xy"]), n_sweeps, seeds, out_y,
+                        np.empty((Xte.shape[0], L)))
+    return out_y.mean(axis=1)
+
+
+def test_prediction_on_model_data_approaches_true_dictionaries():
+    Xtr, Ytr, Xte, Yte, truth = _simulate(0)
+    model = BayesianSR(n_atoms=8, n_iter=400, n_burn_in=200, thin=4, standardize=False, random_state=1).fit(Xtr, Ytr)
+    y, sd = model.predict(Xte, return_std=True)
+    rmse = np.sqrt(np.mean((y - Yte) ** 2))
+    rmse_oracle = np.sqrt(np.mean((_oracle_predict(Xtr, Xte, truth, model.n_neighbors) - Yte) ** 2))
+    rmse_mean = np.sqrt(np.mean((Ytr.mean(axis=0) - Yte) ** 2))
+    assert rmse_oracle < 0.5 * rmse_mean  # the problem is learnable from x
+    assert rmse < 1.25 * rmse_oracle, (rmse, rmse_oracle, rmse_mean)
+    inside = np.abs(y - Yte) <= 1.6449 * sd
+    assert 0.85 <= inside.mean() <= 0.95, inside.mean()
+
+
+# ---------------------------------------------------------------------------------------------------------
+# behaviour
+# ---------------------------------------------------------------------------------------------------------
+def test_neighbour_override_equals_refit():
+    X, Y = _toy()
+    a = BayesianSR(**{**SMALL, "n_neighbors": 3}).fit(X[:30], Y[:30])
+    b = BayesianSR(**{**SMALL, "n_neighbors": 7}).fit(X[:30], Y[:30])
+    np.testing.assert_array_equal(a.predict(X[30:], n_neighbors=7), b.predict(X[30:]))
+    assert not np.allclose(a.predict(X[30:]), b.predict(X[30:]))
+    assert BayesianSR._predict_time_params == ("n_neighbors",)
+
+
+def test_reproducible_and_seed_dependent():
+    X, Y = _toy()
+    p1 = BayesianSR(**SMALL).fit(X, Y).predict(X[:5])
+    p2 = BayesianSR(**SMALL).fit(X, Y).predict(X[:5])
+    p3 = BayesianSR(**{**SMALL, "random_state": 1}).fit(X, Y).predict(X[:5])
+    np.testing.assert_array_equal(p1, p2)
+    assert not np.allclose(p1, p3)
+
+
+def test_prediction_batch_invariant_and_weighting():
+    X, Y = _toy()
+    m = BayesianSR(**SMALL).fit(X[:30], Y[:30])
+    full, sd = m.predict(X[30:], return_std=True)
+    np.testing.assert_array_equal(m.predict(X[33:35]), full[3:5])
+    assert full.shape == sd.shape == (10, 3) and np.all(sd > 0)
+    m.set_params(prediction_weighting="likelihood")
+    lw = m.predict(X[30:])
+    assert np.all(np.isfinite(lw)) and not np.allclose(lw, full)
+
+
+def test_traces_samples_and_logging(caplog):
+    X, Y = _toy()
+    with caplog.at_level(logging.INFO, logger="bsrbench.models.bsr"):
+        m = BayesianSR(n_atoms=5, n_iter=200, n_burn_in=100, thin=10, verbose=True, random_state=0).fit(X, Y)
+    msgs = [r.getMessage() for r in caplog.records if r.name == "bsrbench.models.bsr"]
+    assert any(s.startswith("sweep 100/200") for s in msgs) and any(s.startswith("sweep 200/200") for s in msgs)
+    for name in diagnostics.SCALAR_TRACES:
+        assert m.trace_[name].shape == (200,) and np.all(np.isfinite(m.trace_[name]))
+    assert m.samples_["W"].shape == (10, 40, 5) and m.samples_["Dx"].shape == (10, 5, 5)
+    assert m.samples_["Dy"].shape == (10, 5, 3)
+    np.testing.assert_array_equal(m.samples_["g_xy"], m.trace_["g_xy"][109::10])
+    assert np.all(m.trace_["acceptance"] == 1.0)  # elliptical slice sampling always moves
+    mh = BayesianSR(n_atoms=5, n_iter=40, n_burn_in=20, w_update="mh", random_state=0).fit(X, Y)
+    assert 0.0 <= mh.trace_["acceptance"].mean() < 1.0
+
+
+def test_chain_summary_and_plot(tmp_path):
+    X, Y = _toy()
+    fits = [BayesianSR(n_atoms=5, n_iter=120, n_burn_in=60, random_state=s).fit(X, Y) for s in range(3)]
+    tab = diagnostics.chain_summary(fits)
+    assert list(tab.index[:3]) == ["log_likelihood", "g_xy", "g_s"]
+    assert (tab.loc["g_xy", "n_chains"], tab.loc["g_xy", "n_draws"]) == (3, 60)
+    assert 1.0 <= tab.loc["log_likelihood", "ess_bulk"] <= 180 and np.isfinite(tab.loc["g_s", "r_hat"])
+    # a chain stuck elsewhere gives a large R-hat
+    shifted = [dict(f.trace_) for f in fits]
+    shifted[0]["g_s"] = shifted[0]["g_s"] + 10 * shifted[0]["g_s"].std()
+    assert diagnostics.chain_summary(shifted, burn_in=60).loc["g_s", "r_hat"] > 1.5
+    out = tmp_path / "traces.png"
+    diagnostics.plot_traces(fits, out)
+    assert out.stat().st_size > 1000
+    with pytest.raises(InputError, match="chain 0: expected a fitted BayesianSR"):
+        diagnostics.chain_summary([42])
+
+
+# ---------------------------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------------------------
+def test_rows_mismatch():
+    X, Y = _toy()
+    with pytest.raises(InputError, match="same number of rows; got X with 40 and Y with 39"):
+        BayesianSR(**SMALL).fit(X, Y[:39])
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_input(bad):
+    X, Y = _toy()
+    X[3, 1] = bad
+    with pytest.raises(ValueError, match="Input X contains (NaN|infinity)"):
+        BayesianSR(**SMALL).fit(X, Y)
+    X, Y = _toy()
+    Y[2, 0] = bad
+    with pytest.raises(ValueError, match="Input y contains (NaN|infinity)"):
+        BayesianSR(**SMALL).fit(X, Y)
+
+
+def test_fewer_rows_than_neighbours():
+    X, Y = _toy(n=4)
+    with pytest.raises(InputError, match=r"n_neighbors=5\) training rows; got n_samples = 4"):
+        BayesianSR(**{**SMALL, "n_neighbors": 5}).fit(X, Y)
+    m = BayesianSR(**SMALL).fit(X, Y)
+    with pytest.raises(InputError, match=r"n_neighbors must be in \[1, 4\]; got 9"):
+        m.predict(X, n_neighbors=9)
+
+
+@pytest.mark.parametrize(
+    "params, match",
+    [
+        ({"n_burn_in": 30, "n_iter": 30}, "n_burn_in must be smaller than n_iter=30.*got n_burn_in=30"),
+        ({"n_atoms": 0}, "n_atoms must be >= 1; got 0"),
+        ({"n_atoms": 2.5}, "n_atoms must be an integer; got 2.5"),
+        ({"thin": 0}, "thin must be >= 1; got 0"),
+        ({"w_update": "gibbs"}, "w_update must be one of .*got 'gibbs'"),
+        ({"prediction_weighting": "max"}, "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'"),
+        ({"a0": -1.0}, "a0 must be a positive finite number; got -1.0"),
+        ({"standardize": "yes"}, "standardize must be True or False; got 'yes'"),
+    ],
+)
+def test_bad_parameters(params, match):
+    X, Y = _toy()
+    with pytest.raises(InputError, match=match):
+        BayesianSR(**{**SMALL, **params}).fit(X, Y)
+
+
+def test_non_finite_state_names_the_sweep(monkeypatch):
+    X, Y = _toy()
+    X[0, 0] = 1e300  # finite input whose square overflows without standardization
+    with pytest.raises(SamplerError, match=r"non-finite or degenerate sampler state at sweep 0 \(initial state\)"):
+        BayesianSR(**{**SMALL, "standardize": False}).fit(X, Y)
+    # force a huge atom just before sweep 5: the real sweep then produces a non-finite state
+    real_sweep, calls = kern.gibbs_sweep, []
+
+    def sweep_with_blowup(state, data, hyper, rng, w_update):
+        if len(calls) == 5:
+            state.D[0, :] = 1e300
+            state.norms[0] = np.inf
+        calls.append(1)
+        return real_sweep(state, data, hyper, rng, w_update)
+
+    monkeypatch.setattr(kern, "gibbs_sweep", sweep_with_blowup)
+    X, Y = _toy()
+    with pytest.raises(SamplerError, match=r"non-finite or degenerate sampler state at sweep 5\b"):
+        BayesianSR(**SMALL).fit(X, Y)
+
+
+def test_degenerate_logit_prior_uses_jitter():
+    X, Y = _toy()
+    Y[1] = Y[0]  # duplicate poses make Sigma_w singular
+    m = BayesianSR(**SMALL).fit(X, Y)
+    assert m.sigma_jitter_ > 0 and np.all(np.isfinite(m.predict(X[:3])))
+
+
+def test_predict_before_fit_and_wrong_width():
+    X, Y = _toy()
+    from sklearn.exceptions import NotFittedError
+
+    with pytest.raises(NotFittedError):
+        BayesianSR(**SMALL).predict(X)
+    m = BayesianSR(**SMALL).fit(X, Y)
+    with pytest.raises(ValueError, match="X has 4 features, but BayesianSR is expecting 5"):
+        m.predict(X[:, :4])
