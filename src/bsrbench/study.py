@@ -227,8 +227,11 @@ class JobSpec:
         return method_seed(self.source, self.activity, self.n_train, self.seed, self.method)
 
 
-def cross_validate(spec, features, *, estimator, params, grid, folds=5):
+def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_params=None):
     """Choose hyper-parameters by ``folds``-fold CV on the training frames of ``spec``'s split.
+
+    ``cv_params`` replace entries of ``params`` in the CV fits only (e.g. fewer MCMC sweeps); the
+    returned ``best_params`` are ``params`` updated with the grid's choice.
 
     Delegates to :func:`bsrbench.tuning.tune` (the grid search shared by all methods) with the pose
     transform of the study. Returns a JSON-ready dict: best_params (merged over ``params``), best_score,
@@ -239,7 +242,7 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5):
     X, Y = features["X"], features["Y"]
     train, _ = spec.split(X.shape[0])
     grid = {k: list(v) for k, v in (grid or {}).items()}
-    est = make_estimator(estimator, params, random_state=spec.method_seed)
+    est = make_estimator(estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed)
     t0 = time.perf_counter()
     if grid:
         res = tune(
@@ -268,6 +271,7 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5):
             "protocol": spec.protocol,
             "folds": int(folds),
             "grid": grid,
+            "cv_params": dict(cv_params or {}),
             "best_params": chosen,
             "best_score": score,
             "cv_results": table,

@@ -15,5 +15,7 @@ rule aggregate:
     benchmark:
         "results/benchmarks/aggregate/aggregate.tsv"
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/aggregate.py"

@@ -114,7 +114,7 @@ def fit_targets(ext="json"):
 def cv_input(wildcards):
     """The CV result a fit job reads (none with cv.mode none)."""
     mode = config["cv"]["mode"]
-    if mode == "none":
+    if mode == "none" or method_grid(wildcards) == {}:
         return []
     seed = 0 if mode == "per_size" else wildcards.seed
     w = wildcards

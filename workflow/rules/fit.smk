@@ -13,12 +13,15 @@ rule cv:
     params:
         estimator=lambda w: method_setting(w.method)["estimator"],
         fixed=lambda w: method_setting(w.method).get("params", {}),
+        cv_params=lambda w: method_setting(w.method).get("cv_params") or {},
         grid=method_grid,
         folds=config["cv"]["folds"],
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     resources:
         mem_mb=2000,
         runtime=120,
@@ -46,6 +49,8 @@ rule fit:
         min_test=config["min_test"],
         gap=config["gap"],
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     resources:
         mem_mb=2000,
         runtime=30,

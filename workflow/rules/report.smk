@@ -20,6 +20,8 @@ rule table:
         protocols=config["protocols"],
         status=lambda w: data_status(w.source),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/tables.py"
 
@@ -38,6 +40,8 @@ rule report_text:
         tables=table_targets(),
         figures=figure_targets("pdf"),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/report_text.py"
 
@@ -59,6 +63,8 @@ rule plot_error_vs_ntrain:
         methods=run_methods(),
         labels=method_labels(),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_error.py"
 
@@ -79,6 +85,8 @@ rule plot_calibration:
         methods=run_methods(),
         labels=method_labels(),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_calibration.py"
 
@@ -100,6 +108,8 @@ rule plot_trace:
         method=config["report"]["trace_method"],
         labels=method_labels(),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_trace.py"
 
@@ -127,6 +137,8 @@ rule plot_subjective:
         },
         labels=method_labels(),
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_subjective.py"
 
@@ -142,5 +154,7 @@ rule report_pdf:
     log:
         "logs/report/report_pdf.log",
     threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/report_pdf.py"

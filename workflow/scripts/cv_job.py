@@ -29,6 +29,7 @@ result = cross_validate(
     load_features(sm.input.features),
     estimator=p.estimator,
     params=p.fixed,
+    cv_params=p.cv_params,
     grid=p.grid,
     folds=p.folds,
 )

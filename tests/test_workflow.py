@@ -1,0 +1,134 @@
+"""The Snakemake workflow: lint, dry runs (default, paper, SLURM profile), config errors before any job,
+and a real end-to-end run of config/ci.yaml in a temporary copy of the working tree."""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
+STUDY_RULES = {"cv", "fit", "aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration",
+               "plot_trace", "plot_subjective", "report_pdf", "all"}
+PAPER_TABLE_ROWS = {
+    "I": ["Acrobatics", "Navigate", "Golf"],
+    "II": ["Throw and catch football", "Michael jackson styled motions", "Kick soccer ball", "Run", "Walk"],
+}
+
+
+def smk(*args, cwd=ROOT, timeout=600):
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    return subprocess.run([SNAKEMAKE, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def test_lint_has_nothing_to_say_about_the_study_rules():
+    res = smk("--lint")
+    out = res.stdout + res.stderr
+    flagged = set(re.findall(r"Lints for rule (\w+)", out))
+    assert not flagged & STUDY_RULES, out
+    assert "Lints for snakefile" not in out, out
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        (),
+        ("--configfile", "config/paper.yaml"),
+        ("--configfile", "config/ci.yaml"),
+        ("--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml"),
+    ],
+    ids=["default", "paper", "ci", "slurm-profile"],
+)
+def test_dry_run(args):
+    res = smk("-n", "--cores", "2", *args) if "--profile" not in args else smk("-n", *args)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    out = res.stdout + res.stderr
+    assert re.search(r"^fit\s+\d+", out, re.M) or "Nothing to be done" in out, out[-3000:]
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("study_activities: {hsc: [juggling]}", r"study_activities\.hsc.*unknown activity 'juggling'"),
+        ("study_activities: {nosource: [golf]}", r"study_activities.*unknown data source 'nosource'"),
+        ("run: [PM, XGB]", r"'run': unknown method 'XGB'"),
+        ("n_train: [30, 550]", r"'n_train': 550 is too large for hsc/acrobatics"),
+        ("n_seeds: 0", r"n_seeds"),
+        ("protocols: [blocks]", r"blocks"),
+        ("cv: {mode: sometimes}", r"sometimes"),
+    ],
+)
+def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(override + "\n")
+    res = smk("-n", "--cores", "1", "--configfile", str(bad))
+    assert res.returncode != 0
+    assert re.search(message, res.stdout + res.stderr), res.stdout[-2000:] + res.stderr[-2000:]
+
+
+@pytest.fixture(scope="module")
+def ci_run(tmp_path_factory):
+    """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
+    work = tmp_path_factory.mktemp("study")
+    for name in ("Snakefile", "workflow", "config"):
+        src = ROOT / name
+        (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
+    (work / "reports").mkdir()
+    shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
+    (work / "resources").symlink_to(ROOT / "resources")
+    res = smk("--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=work, timeout=900)
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
+    return work
+
+
+def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
+    import pandas as pd
+
+    df = pd.read_csv(ci_run / "results" / "aggregate" / "results.csv")
+    assert len(df) == 7 * 2  # 7 methods x 1 activity x 1 size x 2 seeds
+    assert set(df["method"]) == {"RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge"}
+    assert df["error"].between(0, 180).all()
+    assert df.loc[df["method"] == "PM", "coverage_90"].between(0, 1).all()
+    assert (ci_run / "results" / "cv" / "random" / "hsc" / "golf" / "PM" / "n30" / "seed0.json").is_file()
+
+
+def test_ci_tables_have_the_paper_rows(ci_run):
+    for table, names in PAPER_TABLE_ROWS.items():
+        text = (ci_run / "reports" / "tables" / f"table{table}_hsc.tex").read_text()
+        assert r"\toprule" in text and r"\bottomrule" in text
+        rows = [ln.split(" & ")[0] for ln in text.splitlines() if ln.endswith(r"\\") and not ln.startswith(r"\emph")]
+        assert rows[0] == "Activity"
+        assert list(dict.fromkeys(rows[1:])) == names
+    golf = [ln for ln in (ci_run / "reports/tables/tableI_hsc.tex").read_text().splitlines() if ln.startswith("Golf & 30")]
+    assert len(golf) == 1 and golf[0].count(r"\textbf") >= 1 and golf[0].count(r"$\pm$") == 7
+
+
+def test_ci_pdf_and_html_report(ci_run):
+    pdf = ci_run / "reports" / "report.pdf"
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    if shutil.which("pdfinfo"):
+        info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True).stdout
+        assert int(re.search(r"Pages:\s+(\d+)", info).group(1)) >= 3
+    res = smk("--configfile", "config/ci.yaml", "--report", "reports/report.html", cwd=ci_run)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert (ci_run / "reports" / "report.html").stat().st_size > 10_000
+
+
+def test_ci_rerun_is_a_no_op(ci_run):
+    res = smk("-n", "--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=ci_run)
+    assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
+
+
+@pytest.mark.slow
+def test_ci_tables_are_identical_when_everything_is_recomputed(ci_run):
+    before = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
+    for d in ("results/fit", "results/cv", "results/aggregate", "reports/tables"):
+        shutil.rmtree(ci_run / d)
+    res = smk("--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=ci_run, timeout=900)
+    assert res.returncode == 0, res.stderr[-3000:]
+    after = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
+    assert after == before
