@@ -51,7 +51,7 @@ def _config(tmp, base_url):
                 "walk": {"paper_activity": "Walk", "format": "bvh", "files": [str(CMU / "12_02.bvh")],
                          "checksums": str(CMU / "SHA256SUMS"), "n_frames": 6},
                 "tiny_amc": {"paper_activity": "Navigate", "format": "amc", "cmu_trials": ["01_01"],
-                             "checksums": "sidecar", "skeleton": "asf", "drop_first_frame": False,
+                             "checksums": "sidecar", "skeleton": "asf", "skip_frames": 0,
                              "n_frames": TINY_FRAMES},
                 "not_here": {"paper_activity": "Acrobatics", "format": "amc", "cmu_trials": ["49_21"],
                              "checksums": "sidecar", "enabled": False},
@@ -118,7 +118,7 @@ def test_features_rules_end_to_end(tmp_path):
         assert list(z["trial_ids"]) == ["05_01", "13_11"]
     again = learn_codebook_from_trials(
         cfg["features"]["codebook"]["files"], tmp_path / "again.npz", frames_per_trial=4, n_centres=6,
-        render=RENDER, n_points=24, seed=3,
+        render=RENDER, n_points=24, seed=3, skip_frames=6,
     )
     np.testing.assert_array_equal(again, centres)
 

@@ -234,6 +234,11 @@ def test_concatenation_and_frame_bookkeeping():
     np.testing.assert_allclose(m.positions[n1 - 1 :], single.positions)
     kept = load_motion(paths[1], drop_first_frame=False)
     assert kept.n_frames == n2 and kept.trial_frames[0] == 0
+    skipped = load_motion(paths, skip_frames=6)
+    assert skipped.n_frames == n1 - 6 + n2 - 6 and skipped.trial_frames[0] == 6
+    np.testing.assert_allclose(skipped.positions[0], m.positions[5])
+    with pytest.raises(InputError, match=r"skip_frames must be an integer >= 0; got -1"):
+        load_motion(paths, skip_frames=-1)
     sub = m.take([0, 5, 200])
     np.testing.assert_array_equal(sub.source_frames, [0, 5, 200])
     np.testing.assert_allclose(sub.angles[2], m.angles[200])

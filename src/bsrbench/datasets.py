@@ -229,12 +229,14 @@ def _heading_column(angle_names, pose_joints):
 
 
 def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skeleton_kind=None, joint_map=None,
-                   drop_first_frame=True, asf=None, checksums=None):
+                   drop_first_frame=True, asf=None, checksums=None, skip_frames=None):
     """Parse and concatenate trials, pick ``n_frames`` frames and save positions and poses to ``out_path``.
 
     The ``.npz`` holds ``positions`` (F, J, 3), ``parents``, ``joint_names``, ``angles`` (F, 57), ``angle_names``,
     ``frames`` (index among the concatenated usable frames), ``trial_ids``, ``trial_index``, ``trial_frames``,
     ``frame_time``, ``skeleton_kind``, ``pose_joints``, ``heading_column``. Returns the selected Motion.
+    ``drop_first_frame``/``skip_frames``: leading frames dropped from every trial (see
+    :func:`bsrbench.mocap.load_motion`).
     """
     from .mocap import load_motion
 
@@ -244,7 +246,7 @@ def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skel
     if asf is not None:
         verify_checksum(asf, checksums)
     motion = load_motion(paths, skeleton_kind=skeleton_kind, joint_map=joint_map,
-                         drop_first_frame=drop_first_frame, asf=asf)
+                         drop_first_frame=drop_first_frame, asf=asf, skip_frames=skip_frames)
     src = ", ".join(str(p) for p in paths)
     idx = select_frames(motion.n_frames, n_frames, frame_selection, src)
     sel = motion.take(idx)
@@ -280,7 +282,7 @@ def _descriptors(positions, parents, joint_names, render, n_points, seed):
 
 
 def learn_codebook_from_trials(paths, out_path, frames_per_trial=60, n_centres=100, render=None, n_points=200,
-                               seed=0, drop_first_frame=True, checksums=None, asf=None):
+                               seed=0, drop_first_frame=True, checksums=None, asf=None, skip_frames=None):
     """Learn the shape-context codebook from the codebook trials only and save it (``centres``, ``trial_ids``).
 
     From each trial, ``frames_per_trial`` frames spread evenly over its usable frames are rendered; the shape
@@ -296,7 +298,7 @@ def learn_codebook_from_trials(paths, out_path, frames_per_trial=60, n_centres=1
     descs = []
     for p in paths:
         verify_checksum(p, checksums)
-        m = load_motion([p], drop_first_frame=drop_first_frame, asf=asf)
+        m = load_motion([p], drop_first_frame=drop_first_frame, asf=asf, skip_frames=skip_frames)
         m = m.take(select_frames(m.n_frames, frames_per_trial, "spread", str(p)))
         _, d = _descriptors(m.positions, m.parents, m.joint_names, render, n_points, derive_seed("codebook", p.stem, seed))
         descs.extend(d)

@@ -146,7 +146,7 @@ def motion_params(wildcards):
         "frame_selection": d["frame_selection"],
         "skeleton_kind": None if d["skeleton"] == "auto" else d["skeleton"],
         "joint_map": d["joint_map"],
-        "drop_first_frame": d["drop_first_frame"],
+        "skip_frames": d["skip_frames"],
         "checksums": d["checksums"],
     }
 

@@ -15,7 +15,7 @@ rule features_codebook:
         n_points=lookup(dpath="features/shape_context/n_points", within=config),
         frames_per_trial=lookup(dpath="features/codebook/frames_per_trial", within=config),
         n_centres=lookup(dpath="features/codebook/n_centres", within=config),
-        drop_first_frame=lookup(dpath="features/codebook/drop_first_frame", within=config),
+        skip_frames=lookup(dpath="features/codebook/skip_frames", within=config),
         checksums=lookup(dpath="features/codebook/checksums", within=config),
         seed=lookup(dpath="features/seed", within=config),
     script:

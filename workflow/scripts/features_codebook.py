@@ -15,7 +15,7 @@ centres = learn_codebook_from_trials(
     render=sm.params.render,
     n_points=sm.params.n_points,
     seed=sm.params.seed,
-    drop_first_frame=sm.params.drop_first_frame,
+    skip_frames=sm.params.skip_frames,
     checksums=sm.params.checksums,
 )
 print(f"{sm.output[0]}: {centres.shape[0]} centres of dimension {centres.shape[1]}", file=sys.stderr)

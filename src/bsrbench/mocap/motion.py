@@ -176,13 +176,15 @@ def read_trial(path, asf=None):
     raise DataFileError(path, f"unknown motion file type {suffix!r}; expected .bvh or .amc")
 
 
-def load_motion(paths, skeleton_kind=None, joint_map=None, drop_first_frame=True, asf=None):
+def load_motion(paths, skeleton_kind=None, joint_map=None, drop_first_frame=True, asf=None, skip_frames=None):
     """Parse trials, concatenate them and return a :class:`Motion`.
 
     ``paths``: one path or a list (BVH, or AMC with the ASF skeleton ``asf``); all trials must share one
     skeleton topology. ``skeleton_kind``: ``"daz"``, ``"3dsmax"`` or ``"asf"`` (detected when None) picks the
     joint map; ``joint_map`` (19 joint names) overrides it. ``drop_first_frame`` drops frame 0 of every trial
     (the rest pose that the cgspeed BVH converter adds; CMU's AMC files have none, so pass False for them).
+    ``skip_frames`` (int), when given, replaces it: that many leading frames of every trial are dropped (the
+    Daz-friendly converter also blends from the rest pose into the motion over frames 1-5).
     Angles are unwrapped over the concatenated sequence.
     """
     if isinstance(paths, (str, Path)):
@@ -207,10 +209,15 @@ def load_motion(paths, skeleton_kind=None, joint_map=None, drop_first_frame=True
     cols, angle_names = pose_columns(skel, pose_joints)
 
     positions, angles, tidx, tfr = [], [], [], []
-    start = 1 if drop_first_frame else 0
+    if skip_frames is None:
+        start = 1 if drop_first_frame else 0
+    elif isinstance(skip_frames, (bool, float)) or not isinstance(skip_frames, (int, np.integer)) or skip_frames < 0:
+        raise InputError(f"skip_frames must be an integer >= 0; got {skip_frames!r}")
+    else:
+        start = int(skip_frames)
     for k, (p, t) in enumerate(zip(paths, trials)):
         if t.n_frames <= start:
-            raise DataFileError(p, f"has {t.n_frames} frame(s); nothing is left after dropping frame 0")
+            raise DataFileError(p, f"has {t.n_frames} frame(s); nothing is left after dropping the first {start}")
         motion = t.motion[start:]
         pos = _positions_of(t, motion)
         ang = np.where(cols >= 0, motion[:, np.maximum(cols, 0)], 0.0)
