@@ -18,6 +18,9 @@ rule features_codebook:
         skip_frames=lookup(dpath="features/codebook/skip_frames", within=config),
         checksums=lookup(dpath="features/codebook/checksums", within=config),
         seed=lookup(dpath="features/seed", within=config),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/features_codebook.py"
 
@@ -42,6 +45,9 @@ rule features_mocap:
         meta=features_meta,
     wildcard_constraints:
         source=motion_source_regex(),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/features_mocap.py"
 
@@ -57,5 +63,8 @@ rule features_mat:
         options=mat_params,
     wildcard_constraints:
         source=mat_source_regex(),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/features_mat.py"

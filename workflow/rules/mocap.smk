@@ -12,6 +12,9 @@ rule download_cmu_asf:
         expected=lambda wildcards: download_checksum(f"{wildcards.subject}.asf"),
     wildcard_constraints:
         subject=r"\d+",
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/download_cmu_asf.py"
 
@@ -30,6 +33,9 @@ rule download_cmu_amc:
     wildcard_constraints:
         subject=r"\d+",
         trial=r"\d+",
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/download_cmu_amc.py"
 
@@ -47,5 +53,8 @@ rule mocap_poses:
         options=motion_params,
     wildcard_constraints:
         source=motion_source_regex(),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
     script:
         "../scripts/mocap_poses.py"
