@@ -40,7 +40,7 @@ def _grid(n):
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
     for ax in axes.flat[n:]:
         ax.set_visible(False)
-    return fig, axes.flat
+    return fig, list(axes.flat)
 
 
 def plot_error_vs_ntrain(df, paper, *, source, methods, labels):
@@ -74,9 +74,13 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels):
             if n not in names:
                 handles.append(h)
                 names.append(n)
-    fig.legend(handles, names, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, frameon=False)
-    fig.suptitle(f"Error against training-set size ({source}); open markers, dotted: the paper", y=1.02)
-    fig.tight_layout()
+    nrows = math.ceil(len(names) / 4)
+    height = fig.get_size_inches()[1]
+    fig.set_size_inches(fig.get_size_inches()[0], height + 0.18 * nrows + 0.3)
+    bottom = (0.18 * nrows + 0.3) / (height + 0.18 * nrows + 0.3)
+    fig.legend(handles, names, loc="lower center", ncol=4, frameon=False)
+    fig.suptitle(f"Error against training-set size ({source}); open markers, dotted: the paper")
+    fig.tight_layout(rect=(0, bottom, 1, 0.97))
     return fig
 
 

@@ -159,7 +159,7 @@ def write_body(path, *, tables, figures):
     lines += [r"\clearpage", r"\section{Figures}"]
     for f, caption in figures:
         lines += [
-            r"\begin{figure}[htbp]",
+            r"\begin{figure}[H]",
             r"\centering",
             rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{{Path(f).as_posix()}}}",
             rf"\caption{{{caption}}}",

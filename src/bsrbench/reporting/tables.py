@@ -190,11 +190,11 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
         if protocol == "random":
             caption += " Italic rows: the paper's numbers."
         out += [
-            r"\begin{table}[htbp]",
+            r"\begin{table}[H]",
             r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
             rf"\caption{{{caption}}}",
             rf"\label{{tab:{table}-{source}-{protocol}}}",
-            r"\begin{tabular}{@{}p{2.4cm}r" + "c" * len(methods) + "@{}}",
+            r"\begin{tabular}{@{}p{2.9cm}r" + "c" * len(methods) + "@{}}",
             r"\toprule",
             _row(["Activity", r"Tr.\ \#"] + [latex_escape(labels.get(m, m)) for m in methods]),
         ]
