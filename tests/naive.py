@@ -158,18 +158,28 @@ def _splitmix(state):
 
 
 class SplitMix:
-    """The prediction stream: splitmix64 uniforms (53 bits) and Box-Muller normals."""
+    """The prediction stream: splitmix64 uniforms (53 bits) and polar-method normals."""
 
     def __init__(self, seed):
         self.state = int(seed)
+        self.spare = None
 
     def uniform(self):
         self.state, z = _splitmix(self.state)
         return (z >> 11) / 9007199254740992.0
 
     def normal(self):
-        u1, u2 = self.uniform(), self.uniform()
-        return np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+        """Marsaglia's polar method; the second normal of a pair is returned by the next call."""
+        if self.spare is not None:
+            z, self.spare = self.spare, None
+            return z
+        while True:
+            v1, v2 = 2.0 * self.uniform() - 1.0, 2.0 * self.uniform() - 1.0
+            q = v1 * v1 + v2 * v2
+            if 0.0 < q < 1.0:
+                f = np.sqrt(-2.0 * np.log(q) / q)
+                self.spare = v2 * f
+                return v1 * f
 
 
 def point_seed(x, seed):

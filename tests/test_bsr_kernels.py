@@ -131,7 +131,7 @@ def test_predict_kernel_matches_naive():
 
 
 def test_splitmix_stream_is_uniform():
-    """The prediction stream: uniform on [0, 1) and Box-Muller normals are standard normal."""
+    """The prediction stream: uniform on [0, 1) and polar-method normals are standard normal."""
     s = naive.SplitMix(2024)
     u = np.array([s.uniform() for _ in range(4000)])
     z = np.array([s.normal() for _ in range(4000)])

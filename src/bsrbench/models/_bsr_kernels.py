@@ -168,6 +168,16 @@ def _backward_solve_t(L, Z, nb=48):
 # the updates (each mutates the state in place)
 # ----------------------------------------------------------------------------------------------------------
 @njit(cache=True)
+def _adjacent_gram(D, lo, hi):
+    """g[k] = d_k . d_{k+1} over columns lo:hi (g[K-1] = 0): the look-ahead correction of the code update."""
+    K = D.shape[0]
+    g = np.zeros(K)
+    for k in range(K - 1):
+        g[k] = _dot(D[k, lo:hi], D[k + 1, lo:hi])
+    return g
+
+
+@njit(cache=True)
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     """Joint (b_ki, s_ki) block update for every data point i and atom k (i outer, k inner).
 
@@ -175,8 +185,11 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
     ``s ~ N(0, 1/g_s)``. Draw order per (i, k): one uniform (for b), then one standard normal (for s).
     The residual row r_i is updated in place by ``d_k (alpha_old - alpha_new)``: O(M) per (i, k).
+    Software-pipelined: ``d_{k+1} . r`` is computed before atom k's change ``delta`` is known and corrected
+    by ``delta d_k . d_{k+1}``, so the next dot product overlaps the current atom's scalar work.
     """
     N, K = B.shape
+    M = R.shape[1]
     tau = np.empty(K)
     half_log = np.empty(K)
     sd_on = np.empty(K)
@@ -185,20 +198,17 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         tau[k] = g_s + g_xy * norms[k]
         half_log[k] = 0.5 * np.log(g_s / tau[k])
         sd_on[k] = 1.0 / np.sqrt(tau[k])
-    M = R.shape[1]
+    gnext = _adjacent_gram(D, 0, M)
     for i in range(N):
         r = R[i]
-        pending = 0.0  # residual change owed by the previous atom, applied in the next pass over r
+        proj_next = _dot(D[0], r)
         for k in range(K):
             d = D[k]
+            proj = proj_next
+            if k + 1 < K:
+                proj_next = _dot(D[k + 1], r)  # r without atom k's change (added below)
             a_old = S[i, k] if B[i, k] else 0.0
-            if pending != 0.0:
-                proj = _axpy_dot(pending, D[k - 1], r, d)
-                pending = 0.0
-            else:
-                proj = _dot(d, r)
-            proj += a_old * norms[k]
-            mu = g_xy * proj / tau[k]
+            mu = g_xy * (proj + a_old * norms[k]) / tau[k]
             logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
             u = rng.random()
             on = u < _sigmoid(logit)
@@ -209,11 +219,12 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             else:
                 s = z * sd_off
                 a_new = 0.0
-            pending = a_old - a_new
+            delta = a_old - a_new
+            if delta != 0.0:
+                _axpy(delta, d, r)
+                proj_next += delta * gnext[k]
             B[i, k] = 1 if on else 0
             S[i, k] = s
-        if pending != 0.0:
-            _axpy(pending, D[K - 1], r)
 
 
 @njit(cache=True)
@@ -567,11 +578,17 @@ def _uniform(state):
 
 
 @njit(cache=True)
-def _normal(state):
-    """A standard normal by the Box-Muller transform."""
-    state, u1 = _uniform(state)
-    state, u2 = _uniform(state)
-    return state, np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+def _normal_pair(state):
+    """Two independent standard normals by Marsaglia's polar method (Marsaglia & Bray 1964)."""
+    while True:
+        state, u1 = _uniform(state)
+        state, u2 = _uniform(state)
+        v1 = 2.0 * u1 - 1.0
+        v2 = 2.0 * u2 - 1.0
+        q = v1 * v1 + v2 * v2
+        if 0.0 < q < 1.0:
+            f = np.sqrt(-2.0 * np.log(q) / q)
+            return state, v1 * f, v2 * f
 
 
 @njit(cache=True)
@@ -595,7 +612,8 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     For test point t and sample l: ``w_t = mean_{i in J_t} W^l[i, :]`` (J_t = its neighbours, ``nbr[t]``);
     ``n_sweeps`` sweeps of the (b, s) block update restricted to the feature rows, from zero codes;
     ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
-    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]``.
+    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]`` (uniforms; normals by the
+    polar method, pairs used in turn).
     Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
     """
     T, Mx = Xt.shape
@@ -614,39 +632,61 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     r = np.empty(Mx)
     alpha = np.empty(K)
     wt = np.empty(K)
-    for t in range(T):
-        st = seeds[t]
-        for l in range(L):
+    gnext = np.empty((L, K))
+    for l in range(L):
+        gnext[l] = _adjacent_gram(Dx[l], 0, Mx)
+    streams = seeds.copy()  # one stream per test point, advanced sample after sample
+    spare = np.zeros(T)  # the second normal of the last polar pair, per test point
+    has_spare = np.zeros(T, dtype=np.bool_)
+    # samples outer, test points inner: one sample's dictionaries stay in cache for all test points
+    for l in range(L):
+        g_s = gs[l]
+        g_xy = gxy[l]
+        Dxl = Dx[l]
+        for t in range(T):
+            st = streams[t]
+            sp = spare[t]
+            hs = has_spare[t]
             wt[:] = 0.0
             for q in range(nj):
                 wt += Ws[l, nbr[t, q]]
             wt /= nj
             r[:] = Xt[t]
             alpha[:] = 0.0
-            g_s = gs[l]
-            g_xy = gxy[l]
             for _ in range(n_sweeps):
+                proj_next = _dot(Dxl[0], r)
                 for k in range(K):
-                    d = Dx[l, k]
+                    d = Dxl[k]
+                    proj = proj_next
+                    if k + 1 < K:
+                        proj_next = _dot(Dxl[k + 1], r)  # corrected below (see update_codes)
                     a_old = alpha[k]
-                    proj = _dot(d, r) + a_old * nx[l, k]
-                    mu = g_xy * proj / tau[l, k]
+                    mu = g_xy * (proj + a_old * nx[l, k]) / tau[l, k]
                     logit = wt[k] + half_log[l, k] + 0.5 * tau[l, k] * mu * mu
                     st, u = _uniform(st)
-                    if u < _sigmoid(logit):
-                        st, z = _normal(st)
+                    if u * (1.0 + np.exp(-logit)) < 1.0:  # u < sigmoid(logit)
+                        if hs:
+                            z = sp
+                            hs = False
+                        else:
+                            st, z, sp = _normal_pair(st)
+                            hs = True
                         a_new = mu + z * sd_on[l, k]
                     else:
                         a_new = 0.0  # s of an inactive atom does not enter the prediction
                     delta = a_old - a_new
                     if delta != 0.0:
                         _axpy(delta, d, r)
+                        proj_next += delta * gnext[l, k]
                     alpha[k] = a_new
             out_y[t, l, :] = 0.0
             for k in range(K):
                 if alpha[k] != 0.0:
                     _axpy(alpha[k], Dy[l, k], out_y[t, l])
             out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * _dot(r, r)
+            streams[t] = st
+            spare[t] = sp
+            has_spare[t] = hs
 
 
 @njit(cache=True)
