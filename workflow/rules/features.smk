@@ -59,6 +59,8 @@ rule features_mat:
         "results/features/{source}/{activity}.npz",
     log:
         "logs/features/{source}/{activity}.log",
+    benchmark:
+        "logs/features/{source}/{activity}.benchmark.tsv"
     params:
         options=mat_params,
     wildcard_constraints:
