@@ -88,3 +88,15 @@ def test_atomic_path_leaves_nothing_on_failure(tmp_path):
         np.savez(tmp, x=np.arange(3))
     assert np.load(target)["x"].tolist() == [0, 1, 2]
     assert [p.name for p in (tmp_path / "out").iterdir()] == ["a.npz"]
+
+
+def test_atomic_path_output_has_umask_permissions(tmp_path):
+    import os
+
+    mask = os.umask(0o022)
+    try:
+        with atomic_path(tmp_path / "b.txt") as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(mask)
+    assert (tmp_path / "b.txt").stat().st_mode & 0o777 == 0o644
