@@ -80,7 +80,7 @@ def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
     """
     N, K = W.shape
     Z = 2.0 * B - 1.0
-    eps = rng.standard_normal((N, K))
+    eps = rng.standard_normal((K, N)).T  # column k drives atom k
     U = rng.random(K)
     Sigma_inv = np.linalg.inv(Sigma)
     accepted = 0
@@ -108,7 +108,7 @@ def update_w_ess(W, B, Lw, rng):
     """Elliptical slice sampling (Murray, Adams & MacKay 2010, Fig. 2) of each w_k."""
     N, K = W.shape
     Z = 2.0 * B - 1.0
-    Nu = Lw @ rng.standard_normal((N, K))
+    Nu = Lw @ rng.standard_normal((K, N)).T  # column k: atom k's ellipse
     for k in range(K):
         z, w, nu = Z[:, k], W[:, k].copy(), Nu[:, k]
         log_y = np.sum(log_sigmoid(z * w)) + np.log(rng.random())

@@ -296,30 +296,63 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
 
 
 @njit(cache=True)
-def _signs(B):
+def _signs_t(B):
+    """z = 2 b - 1, transposed to (K, N) so that atom k's vector is a contiguous row."""
     N, K = B.shape
-    Z = np.empty((N, K))
+    Zt = np.empty((K, N))
     for i in range(N):
         for k in range(K):
-            Z[i, k] = 1.0 if B[i, k] else -1.0
-    return Z
+            Zt[k, i] = 1.0 if B[i, k] else -1.0
+    return Zt
 
 
 @njit(cache=True)
-def _logit_terms(Z, W, Lam, LogSig):
-    """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w), i.e. the tight bound's Lambda) and
-    LogSig = log sigmoid(z w), elementwise, from one exp and one log1p per entry."""
-    N, K = W.shape
-    for i in range(N):
-        for k in range(K):
-            x = Z[i, k] * W[i, k]
-            e = np.exp(-abs(x))
-            if x >= 0.0:
-                Lam[i, k] = Z[i, k] * (e / (1.0 + e))
-                LogSig[i, k] = -np.log1p(e)
-            else:
-                Lam[i, k] = Z[i, k] * (1.0 / (1.0 + e))
-                LogSig[i, k] = x - np.log1p(e)
+def _sig_pair(x):
+    """(sigmoid(x), sigmoid(-x)) from one exp."""
+    e = np.exp(-abs(x))
+    inv = 1.0 / (1.0 + e)
+    if x >= 0.0:
+        return inv, e * inv
+    return e * inv, inv
+
+
+# Sums of log sigmoids are taken as logs of running products, flushed every _FLUSH factors; factors outside
+# [_TINY, 1/_TINY] are added as exact logs, so a product stays within 1e-240..1e240 (no under/overflow).
+_FLUSH = 8
+_TINY = 1e-30
+
+
+@njit(cache=True)
+def _sum_log_sigmoid(z, w):
+    """sum_i log sigmoid(z_i w_i) for contiguous 1-D z, w (one exp per term, one log per _FLUSH terms)."""
+    acc = 0.0
+    prod = 1.0
+    cnt = 0
+    for i in range(w.shape[0]):
+        x = z[i] * w[i]
+        sg, _ = _sig_pair(x)
+        if sg > _TINY:
+            prod *= sg
+            cnt += 1
+            if cnt == _FLUSH:
+                acc += np.log(prod)
+                prod = 1.0
+                cnt = 0
+        else:
+            acc += _log_sigmoid(x)
+    return acc + np.log(prod)
+
+
+@njit(cache=True)
+def _bound_terms(Zt, Wt, Lam, Sig):
+    """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w): the tight bound's Lambda) and
+    Sig = sigmoid(z w), elementwise over (K, N) arrays."""
+    K, N = Wt.shape
+    for k in range(K):
+        for i in range(N):
+            sg, sm = _sig_pair(Zt[k, i] * Wt[k, i])
+            Sig[k, i] = sg
+            Lam[k, i] = Zt[k, i] * sm
 
 
 @njit(cache=True)
@@ -331,84 +364,88 @@ def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
     ratio (the proposal depends on w, so it is not an independence chain) is
     ``sum_i [log sig(z_i w'_i) - log sig(z_i w_i)] + w . Lambda' - w' . Lambda + (Lambda . mu - Lambda' . mu')/2``.
     With ``paper_as_printed`` the paper's printed ratio ``sum_i [...] - Lambda . (w' - w)`` is used instead
-    (wrong target; an ablation only). All K atoms are batched as matrix products. Draw order: an (N, K)
-    array of standard normals, then K uniforms. Returns the number of accepted atoms.
+    (wrong target; an ablation only). All K atoms are batched as matrix products (Sigma is symmetric, so
+    atom-major (K, N) arrays are multiplied from the right). Draw order: a (K, N) array of standard normals
+    (row k for atom k), then K uniforms. Returns the number of accepted atoms.
     """
     N, K = W.shape
-    Z = _signs(B)
-    Lam = np.empty((N, K))
-    LogSig = np.empty((N, K))
-    _logit_terms(Z, W, Lam, LogSig)
-    Mu = Sigma @ Lam
-    Wp = Mu + Lw @ rng.standard_normal((N, K))
-    Lamp = np.empty((N, K))
-    LogSigp = np.empty((N, K))
-    _logit_terms(Z, Wp, Lamp, LogSigp)
-    Mup = Mu if paper_as_printed else Sigma @ Lamp
+    Zt = _signs_t(B)
+    Wt = np.ascontiguousarray(W.T)
+    Lam = np.empty((K, N))
+    Sig = np.empty((K, N))
+    _bound_terms(Zt, Wt, Lam, Sig)
+    Mu = Lam @ Sigma
+    Wp = Mu + rng.standard_normal((K, N)) @ Lw.T
+    Lamp = np.empty((K, N))
+    Sigp = np.empty((K, N))
+    _bound_terms(Zt, Wp, Lamp, Sigp)
+    Mup = Mu if paper_as_printed else Lamp @ Sigma
     U = rng.random(K)
-    lr = np.zeros(K)
-    for i in range(N):
-        for k in range(K):
-            lr[k] += LogSigp[i, k] - LogSig[i, k]
-            if paper_as_printed:
-                lr[k] -= Lam[i, k] * (Wp[i, k] - W[i, k])
-            else:
-                lr[k] += (W[i, k] * Lamp[i, k] - Wp[i, k] * Lam[i, k]
-                          + 0.5 * (Lam[i, k] * Mu[i, k] - Lamp[i, k] * Mup[i, k]))
     accepted = 0
     for k in range(K):
-        if np.log(U[k]) < lr[k]:
+        lr = 0.0
+        prod = 1.0
+        cnt = 0
+        for i in range(N):
+            # log-likelihood ratio: log(sig(z w'_i) / sig(z w_i)) as a running product
+            a, b = Sigp[k, i], Sig[k, i]
+            if a > _TINY and b > _TINY and _TINY < a / b < 1.0 / _TINY:
+                prod *= a / b
+                cnt += 1
+                if cnt == _FLUSH:
+                    lr += np.log(prod)
+                    prod = 1.0
+                    cnt = 0
+            else:
+                lr += _log_sigmoid(Zt[k, i] * Wp[k, i]) - _log_sigmoid(Zt[k, i] * Wt[k, i])
+            if paper_as_printed:
+                lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
+            else:
+                lr += (Wt[k, i] * Lamp[k, i] - Wp[k, i] * Lam[k, i]
+                       + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i]))
+        lr += np.log(prod)
+        if np.log(U[k]) < lr:
             accepted += 1
             for i in range(N):
-                W[i, k] = Wp[i, k]
+                W[i, k] = Wp[k, i]
     return accepted
-
-
-@njit(cache=True)
-def _loglik_w(Z, W, k):
-    acc = 0.0
-    for i in range(W.shape[0]):
-        acc += _log_sigmoid(Z[i, k] * W[i, k])
-    return acc
 
 
 @njit(cache=True)
 def update_w_ess(W, B, Lw, rng):
     """Elliptical slice sampling (Murray, Adams & MacKay 2010) of every w_k, prior N(0, Sigma = Lw Lw^T).
 
-    Draw order: one (N, K) array of standard normals (the ellipses ``nu = Lw eps``); then per atom k: one
-    uniform for the slice height, one for the initial angle, one per shrinkage step. Returns K (every
-    update moves; the number of accepted atoms for the trace).
+    Draw order: one (K, N) array of standard normals (row k gives atom k's ellipse ``nu = Lw eps_k``); then
+    per atom k: one uniform for the slice height, one for the initial angle, one per shrinkage step.
+    Returns K (every update moves).
     """
     N, K = W.shape
-    Z = _signs(B)
-    Nu = Lw @ rng.standard_normal((N, K))
-    wk = np.empty(N)
+    Zt = _signs_t(B)
+    Wt = np.ascontiguousarray(W.T)
+    Nu = rng.standard_normal((K, N)) @ Lw.T
     wp = np.empty(N)
     two_pi = 2.0 * np.pi
     for k in range(K):
-        for i in range(N):
-            wk[i] = W[i, k]
-        log_y = _loglik_w(Z, W, k) + np.log(rng.random())
+        wk = Wt[k]
+        zk = Zt[k]
+        nk = Nu[k]
+        log_y = _sum_log_sigmoid(zk, wk) + np.log(rng.random())
         theta = rng.random() * two_pi
         lo = theta - two_pi
         hi = theta
         while True:
             c = np.cos(theta)
-            s = np.sin(theta)
-            ll = 0.0
+            sn = np.sin(theta)
             for i in range(N):
-                wp[i] = wk[i] * c + Nu[i, k] * s
-                ll += _log_sigmoid(Z[i, k] * wp[i])
-            if ll > log_y:
+                wp[i] = wk[i] * c + nk[i] * sn
+            if _sum_log_sigmoid(zk, wp) > log_y:
                 break
             if theta < 0.0:
                 lo = theta
             else:
                 hi = theta
             if hi - lo < 1e-300:  # cannot happen for a finite log-likelihood; guard against a hang
-                for i in range(N):
-                    wp[i] = wk[i]
+                wp[:] = wk
                 break
             theta = lo + rng.random() * (hi - lo)
         for i in range(N):
