@@ -184,7 +184,7 @@ class DDL(RegressorMixin, BaseEstimator):
         self.n_iter_ = n_iter
         return self
 
-    def transform(self, X):
+    def sparse_code(self, X):
         """Sparse codes (n, n_components) of features on the feature dictionary D_x."""
         X = _validate_predict(self, X)
         Xs = self._stack_x(X)
@@ -196,7 +196,7 @@ class DDL(RegressorMixin, BaseEstimator):
             return sparse_encode(Xs, self.dictionary_x_, algorithm="omp", n_nonzero_coefs=k)
 
     def predict(self, X):
-        codes = self.transform(X)
+        codes = self.sparse_code(X)
         P = codes @ self.dictionary_y_ * self.y_scale_ + self.y_mean_
         return _format_output(self, P)
 

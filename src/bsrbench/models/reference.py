@@ -72,6 +72,8 @@ def _validate_predict(est, X):
 
 
 def _format_output(est, P):
+    """Predictions as (n, n_outputs), or (n,) if the model was fitted on a 1-D target."""
+    P = np.asarray(P, dtype=np.float64).reshape(P.shape[0], -1)
     return P[:, 0] if getattr(est, "_y_was_1d", False) else P
 
 
