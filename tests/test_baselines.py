@@ -35,3 +35,229 @@ def _expected_failed_checks(est):
 @parametrize_with_checks(CHECK_INSTANCES, expected_failed_checks=_expected_failed_checks)
 def test_sklearn_conventions(estimator, check):
     check(estimator)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# known-answer problems
+
+
+def _linear_data(rng, n, d=3, k=2, noise=0.01):
+    X = rng.uniform(-1, 1, size=(n, d))
+    W = rng.normal(size=(d, k))
+    return X, W
+
+
+def test_ridge_recovers_linear_map():
+    rng = np.random.default_rng(0)
+    X, W = _linear_data(rng, 200)
+    Y = X @ W + 0.5 + 0.01 * rng.standard_normal((200, 2))
+    Xt = rng.uniform(-1, 1, size=(100, 3))
+    m = RidgeRegressor(alpha=1e-3).fit(X, Y)
+    err = np.sqrt(np.mean((m.predict(Xt) - (Xt @ W + 0.5)) ** 2))
+    assert err < 0.01
+    assert np.sqrt(np.mean((Xt @ W) ** 2)) > 50 * err  # the signal is far larger than the error
+
+
+def test_rvm_recovers_linear_map_sparsely_with_calibrated_std():
+    rng = np.random.default_rng(1)
+    noise = 0.05
+    X, W = _linear_data(rng, 150)
+    Y = X @ W + noise * rng.standard_normal((150, 2))
+    Xt = rng.uniform(-0.9, 0.9, size=(200, 3))
+    Yt = Xt @ W + noise * rng.standard_normal((200, 2))
+    m = RVM(width_scale=2.0).fit(X, Y)
+    mean, std = m.predict(Xt, return_std=True)
+    rmse_f = np.sqrt(np.mean((mean - Xt @ W) ** 2))
+    assert rmse_f < 0.5 * noise  # the function is recovered well below the noise level
+    assert len(m.relevance_) < 0.2 * X.shape[0]  # most basis functions pruned
+    assert m.converged_
+    assert np.all(std > 0) and 0.7 * noise < np.median(std) < 1.5 * noise
+    cover = np.mean(np.abs(Yt - mean) <= 1.645 * std)
+    assert 0.8 < cover < 0.98
+
+
+def test_rvm_per_output_noise_tracks_output_scales():
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, size=(120, 2))
+    f = np.column_stack([np.sin(3 * X[:, 0]), X[:, 1] ** 2])
+    Y = f + np.array([0.01, 0.2]) * rng.standard_normal((120, 2))
+    m = RVM(noise="per_output", width_scale=0.5).fit(X, Y)
+    noise_std = m.y_scale_ / np.sqrt(m.beta_)
+    assert noise_std[0] < 0.03 and 0.12 < noise_std[1] < 0.3
+
+
+def test_tgp_smooth_curve():
+    rng = np.random.default_rng(3)
+    x = np.sort(rng.uniform(0, 2 * np.pi, 80))[:, None]
+    xt = rng.uniform(0.1, 2 * np.pi - 0.1, 60)[:, None]
+    Y = np.column_stack([np.cos(x[:, 0]), np.sin(x[:, 0])])
+    Yt = np.column_stack([np.cos(xt[:, 0]), np.sin(xt[:, 0])])
+    for k in (None, 20):
+        P = TGP(width_scale_x=0.2, width_scale_y=0.5, n_neighbors=k).fit(x, Y).predict(xt)
+        err = np.sqrt(np.mean((P - Yt) ** 2))
+        nn = NearestNeighbourRegressor().fit(x, Y).predict(xt)
+        assert err < 0.03
+        assert err < 0.7 * np.sqrt(np.mean((nn - Yt) ** 2))  # better than its 1-NN start
+
+
+def test_tgp_gradient_matches_finite_differences():
+    from scipy.optimize import approx_fprime
+
+    rng = np.random.default_rng(4)
+    n, d = 25, 4
+    Ytr = rng.normal(size=(n, d))
+    K = np.exp(-0.5 * ((Ytr[:, None] - Ytr[None]) ** 2).sum(-1)) + 1e-2 * np.eye(n)
+    Ainv = np.linalg.inv(K)
+    u = rng.uniform(0, 0.2, n)
+    for y in (Ytr[0] + 0.3 * rng.normal(size=d), rng.normal(size=d)):
+        args = (Ytr, Ainv, u, 0.3, 1.01, 1.0)
+        g = _kld_objective(y, *args)[1]
+        num = approx_fprime(y, lambda z: _kld_objective(z, *args)[0], 1e-6)
+        assert np.linalg.norm(num - g) < 1e-4 * max(np.linalg.norm(g), 1e-3)
+
+
+def test_tgp_predict_time_neighbours_equal_refit():
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(40, 3))
+    Y = np.column_stack([X[:, 0] ** 2, np.tanh(X[:, 1])])
+    Xt = rng.normal(size=(10, 3))
+    a = TGP().fit(X, Y).predict(Xt, n_neighbors=15, init="ridge")
+    b = TGP(n_neighbors=15, init="ridge").fit(X, Y).predict(Xt)
+    np.testing.assert_allclose(a, b)
+
+
+def test_one_nn_exact_on_training_points_and_knn_predict_time():
+    rng = np.random.default_rng(6)
+    X = rng.normal(size=(50, 5))
+    Y = rng.normal(size=(50, 4))
+    m = NearestNeighbourRegressor().fit(X, Y)
+    np.testing.assert_array_equal(m.predict(X), Y)
+    Xt = rng.normal(size=(7, 5))
+    np.testing.assert_allclose(m.predict(Xt, n_neighbors=4), NearestNeighbourRegressor(4).fit(X, Y).predict(Xt))
+    np.testing.assert_array_equal(NearestNeighbourRegressor(3, weights="distance").fit(X, Y).predict(X), Y)
+
+
+def _coupled_sparse_data(rng, n, n_atoms=8, dx=30, dy=6, nnz=2):
+    Dx = np.abs(rng.normal(size=(n_atoms, dx)))
+    Dy = rng.normal(size=(n_atoms, dy))
+    C = np.zeros((n, n_atoms))
+    for j in range(nnz):
+        C[np.arange(n), rng.integers(n_atoms, size=n)] += rng.uniform(0.5, 1.5, n)
+    return C @ Dx, C @ Dy
+
+
+def _mean_baseline_error(Y, Yt):
+    return np.sqrt(np.mean((Yt - Y.mean(0)) ** 2))
+
+
+def test_sr_recovers_poses_from_shared_sparse_codes():
+    rng = np.random.default_rng(7)
+    X, Y = _coupled_sparse_data(rng, 260)
+    X, Xt, Y, Yt = X[:200], X[200:], Y[:200], Y[200:]
+    base = _mean_baseline_error(Y, Yt)
+    linear = SR(alpha=1e-6, positive=False, normalize="none", normalize_coef=False).fit(X, Y).predict(Xt)
+    assert np.sqrt(np.mean((linear - Yt) ** 2)) < 0.05 * base
+    default = SR(alpha=1e-4).fit(X, Y).predict(Xt)
+    assert np.sqrt(np.mean((default - Yt) ** 2)) < 0.5 * base
+    lars = SR(alpha=1e-4, solver="lars").fit(X, Y).predict(Xt)
+    assert np.sqrt(np.mean((lars - Yt) ** 2)) < 0.5 * base
+
+
+def test_sr_zero_code_falls_back_to_best_correlated_pose():
+    rng = np.random.default_rng(8)
+    X = np.abs(rng.normal(size=(20, 10)))
+    Y = rng.normal(size=(20, 3))
+    m = SR(alpha=10.0).fit(X, Y)  # alpha far above the largest correlation: all codes are zero
+    C, _ = m.sparse_code(X[:5])
+    assert not np.any(C)
+    np.testing.assert_array_equal(m.predict(X[:5]), Y[:5])
+
+
+def test_ddl_recovers_poses_from_shared_sparse_codes():
+    rng = np.random.default_rng(9)
+    X, Y = _coupled_sparse_data(rng, 260)
+    X, Xt, Y, Yt = X[:200], X[200:], Y[:200], Y[200:]
+    m = DDL(n_components=8, alpha=0.005, normalize="none", max_iter=100, random_state=0).fit(X, Y)
+    err = np.sqrt(np.mean((m.predict(Xt) - Yt) ** 2))
+    assert err < 0.3 * _mean_baseline_error(Y, Yt)
+    assert np.all(np.linalg.norm(m.components_, axis=1) <= 1 + 1e-9)
+    # same seed, same dictionary
+    m2 = DDL(n_components=8, alpha=0.005, normalize="none", max_iter=100, random_state=0).fit(X, Y)
+    np.testing.assert_array_equal(m.components_, m2.components_)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# bad input
+
+ALL = [
+    NearestNeighbourRegressor,
+    RidgeRegressor,
+    lambda: RVM(max_iter=20),
+    lambda: TGP(max_iter=5),
+    SR,
+    lambda: DDL(n_components=3, max_iter=3, random_state=0),
+]
+
+
+@pytest.mark.parametrize("make", ALL)
+def test_row_mismatch_and_nan_are_rejected(make):
+    rng = np.random.default_rng(10)
+    X = np.abs(rng.normal(size=(12, 4)))
+    Y = rng.normal(size=(12, 3))
+    with pytest.raises(ValueError, match="inconsistent numbers of samples"):
+        make().fit(X, Y[:10])
+    Xn = X.copy()
+    Xn[3, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        make().fit(Xn, Y)
+    Yn = Y.copy()
+    Yn[0, 0] = np.inf
+    with pytest.raises(ValueError, match="infinity"):
+        make().fit(X, Yn)
+    m = make().fit(X, Y)
+    with pytest.raises(ValueError, match="NaN"):
+        m.predict(Xn)
+    with pytest.raises(ValueError, match="4 features"):
+        m.predict(X[:, :3])
+
+
+@pytest.mark.parametrize(
+    "est, match",
+    [
+        (NearestNeighbourRegressor(n_neighbors=0), r"n_neighbors must be an integer in \[1, inf\]; got 0"),
+        (NearestNeighbourRegressor(n_neighbors=13), r"n_neighbors=13 exceeds .* n_samples = 12"),
+        (NearestNeighbourRegressor(weights="gauss"), r"weights must be one of .*; got 'gauss'"),
+        (RidgeRegressor(alpha=-1.0), r"alpha must be .* \[0, inf\]; got -1.0"),
+        (RVM(width_scale=0), r"width_scale must be .* \(0, inf\]; got 0"),
+        (RVM(noise="diag"), r"noise must be one of \['per_output', 'shared'\]; got 'diag'"),
+        (RVM(max_iter=2.5), r"max_iter must be an integer .*; got 2.5"),
+        (TGP(lambda_y=0.0), r"lambda_y must be .*; got 0.0"),
+        (TGP(init="zeros"), r"init must be one of \['knn', 'ridge'\]; got 'zeros'"),
+        (TGP(n_neighbors=50), r"n_neighbors=50 exceeds .* n_samples = 12"),
+        (TGP(width_scale_y=np.inf), r"width_scale_y must be a finite real number .*; got inf"),
+        (SR(alpha=0.0), r"alpha must be .* \(0, inf\]; got 0.0"),
+        (SR(solver="omp"), r"solver must be one of \['lars', 'lasso'\]; got 'omp'"),
+        (DDL(n_components=0), r"n_components must be an integer in \[1, inf\]; got 0"),
+        (DDL(coding="cd"), r"coding must be one of \['lasso', 'omp'\]; got 'cd'"),
+    ],
+)
+def test_bad_parameters_name_parameter_and_value(est, match):
+    rng = np.random.default_rng(11)
+    X = np.abs(rng.normal(size=(12, 4)))
+    Y = rng.normal(size=(12, 3))
+    before = est.get_params()
+    with pytest.raises(InputError, match=match):
+        est.fit(X, Y)
+    assert est.get_params() == before  # parameters are never overwritten
+
+
+def test_predict_time_overrides_are_validated():
+    rng = np.random.default_rng(12)
+    X = rng.normal(size=(12, 4))
+    Y = rng.normal(size=(12, 3))
+    with pytest.raises(InputError, match=r"n_neighbors=20 exceeds .* n_samples = 12"):
+        NearestNeighbourRegressor().fit(X, Y).predict(X, n_neighbors=20)
+    with pytest.raises(InputError, match=r"n_neighbors must be an integer .*; got -2"):
+        TGP().fit(X, Y).predict(X, n_neighbors=-2)
+    with pytest.raises(InputError, match=r"alpha must be .*; got -1"):
+        SR().fit(np.abs(X), Y).predict(np.abs(X), alpha=-1)
