@@ -24,6 +24,7 @@ from . import _bsr_kernels as kern
 logger = logging.getLogger("bsrbench.models.bsr")
 
 _LOG_EVERY = 100
+_CHUNK = 1024  # test points per prediction call (bounds the (points, samples, outputs) draw array)
 
 
 def _check_int(name, value, low, high=None):
@@ -274,8 +275,6 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------------------------------------------------
     def _predict_draws(self, X, n_neighbors):
         """Per test point and retained sample: y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g_xy I)."""
-        check_is_fitted(self, "samples_")
-        X = validate_data(self, X, reset=False, dtype=np.float64)
         j = self.n_neighbors if n_neighbors is None else n_neighbors
         N = self.X_train_.shape[0]
         j = _check_int("n_neighbors", j, 1, N)
@@ -296,6 +295,16 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         The std combines the spread of the per-sample predictions and the noise variance 1/g_xy.
         ``n_neighbors`` overrides the fitted value for this call.
         """
+        check_is_fitted(self, "samples_")
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        parts = [self._predict_chunk(X[i:i + _CHUNK], n_neighbors) for i in range(0, max(X.shape[0], 1), _CHUNK)]
+        y = np.concatenate([p[0] for p in parts])
+        std = np.concatenate([p[1] for p in parts])
+        if self.y_ndim_ == 1:
+            y, std = y.ravel(), std.ravel()
+        return (y, std) if return_std else y
+
+    def _predict_chunk(self, X, n_neighbors):
         out_y, out_ll = self._predict_draws(X, n_neighbors)
         L = out_y.shape[1]
         if self.prediction_weighting == "likelihood":
@@ -305,14 +314,6 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         else:
             wts = np.full(out_ll.shape, 1.0 / L)
         mean = np.einsum("tl,tlm->tm", wts, out_y)
-        y = mean * self.y_scale_ + self.y_mean_
-        if self.y_ndim_ == 1:
-            y = y.ravel()
-        if not return_std:
-            return y
         spread = np.einsum("tl,tlm->tm", wts, (out_y - mean[:, None, :]) ** 2)
         noise = wts @ (1.0 / self.samples_["g_xy"])
-        std = np.sqrt(spread + noise[:, None]) * self.y_scale_
-        if self.y_ndim_ == 1:
-            std = std.ravel()
-        return y, std
+        return mean * self.y_scale_ + self.y_mean_, np.sqrt(spread + noise[:, None]) * self.y_scale_
