@@ -80,7 +80,7 @@ def ci_run(tmp_path_factory):
     (work / "reports").mkdir()
     shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
     (work / "resources").symlink_to(ROOT / "resources")
-    res = smk("--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=work, timeout=900)
+    res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=900)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work
 
@@ -119,16 +119,17 @@ def test_ci_pdf_and_html_report(ci_run):
 
 
 def test_ci_rerun_is_a_no_op(ci_run):
-    res = smk("-n", "--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=ci_run)
+    res = smk("reports/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
 
 
 @pytest.mark.slow
 def test_ci_tables_are_identical_when_everything_is_recomputed(ci_run):
     before = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
-    for d in ("results/fit", "results/cv", "results/aggregate", "reports/tables"):
+    for d in ("results/fit", "results/cv", "results/aggregate", "reports/tables", "reports/figures"):
         shutil.rmtree(ci_run / d)
-    res = smk("--cores", "2", "--configfile", "config/ci.yaml", "reports/report.pdf", cwd=ci_run, timeout=900)
+    (ci_run / "reports" / "report.pdf").unlink()
+    res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
     after = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
     assert after == before

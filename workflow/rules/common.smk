@@ -122,9 +122,11 @@ def cv_input(wildcards):
 
 
 def method_grid(wildcards):
-    """The CV grid of a method: its config `grid`, or the module's DEFAULT_GRID when that is null."""
-    grid = method_setting(wildcards.method).get("grid")
+    """The CV grid of a method: its config `grid` ({} for null), or the module's DEFAULT_GRID for "default"."""
+    grid = method_setting(wildcards.method).get("grid", "default")
     if grid is None:
+        return {}
+    if grid == "default":
         from bsrbench.study import default_grid
 
         grid = default_grid(method_setting(wildcards.method)["estimator"])
