@@ -92,7 +92,10 @@ class RVM(RegressorMixin, BaseEstimator):
     alpha_ : ndarray (n_active,)
         ARD precisions of the kept basis functions (bias first if kept).
     beta_ : ndarray (1,) or (n_outputs,)
-        Noise precisions (standardized units).
+        Noise precisions (standardized units; ``inf`` for constant outputs with per-output noise).
+    informative_ : ndarray of bool (n_outputs,)
+        Outputs that vary in the training set; constant outputs are excluded from the hyper-parameter
+        updates and predicted by their training value with zero predictive std.
     coef_ : ndarray (n_active, n_outputs)
         Posterior mean weights (standardized units).
     n_iter_ : int
@@ -142,7 +145,17 @@ class RVM(RegressorMixin, BaseEstimator):
         else:
             self.y_mean_ = np.zeros(D)
             self.y_scale_ = np.ones(D)
-        T = (Y - self.y_mean_) / self.y_scale_
+        T_all = (Y - self.y_mean_) / self.y_scale_
+        # constant outputs carry no information about the basis and would bias the shared updates
+        # (zero residual -> infinite noise precision, gamma without weight): they are predicted by their
+        # training value, with zero predictive std
+        spread = Y.max(axis=0) - Y.min(axis=0)
+        informative = spread > 1e-12 * (1.0 + np.abs(Y).max(axis=0))
+        if not informative.any():
+            informative[:] = True
+        self.informative_ = informative
+        T = T_all[:, informative]
+        D = T.shape[1]
 
         self.kernel_width_ = float(self.width_scale) * _median_distance(X)
         Phi = np.column_stack([np.ones(n), np.exp(-_sq_dists(X, X) / (2.0 * self.kernel_width_**2))])
@@ -187,8 +200,13 @@ class RVM(RegressorMixin, BaseEstimator):
         self.relevance_ = active[active > 0] - 1
         self.X_rv_ = X[self.relevance_]
         self.alpha_ = alpha
-        self.beta_ = beta
-        self.coef_ = Mu
+        if B == 1:
+            self.beta_ = beta
+        else:
+            self.beta_ = np.full(self.n_outputs_, np.inf)
+            self.beta_[informative] = beta
+        self.coef_ = np.zeros((Mu.shape[0], self.n_outputs_))
+        self.coef_[:, informative] = Mu
         self._Linv = Linv
         self.n_iter_ = it
         self.converged_ = converged
@@ -203,9 +221,12 @@ class RVM(RegressorMixin, BaseEstimator):
             return _format_output(self, mean)
         V = np.einsum("nj,bij->bni", P, self._Linv)  # (B, n, m): Linv_b phi
         var_w = (V**2).sum(axis=2).T  # (n, B)
-        var = var_w + 1.0 / self.beta_[None, :]
-        std = np.sqrt(np.broadcast_to(var, mean.shape)) * self.y_scale_
-        return _format_output(self, mean), _format_output(self, np.array(std))
+        inf = self.informative_
+        beta = self.beta_ if self.beta_.shape[0] == 1 else self.beta_[inf]
+        var = var_w + 1.0 / beta[None, :]
+        std = np.zeros_like(mean)
+        std[:, inf] = np.sqrt(np.broadcast_to(var, (mean.shape[0], int(inf.sum())))) * self.y_scale_[inf]
+        return _format_output(self, mean), _format_output(self, std)
 
 
 DEFAULT_GRID = {"width_scale": [0.25, 0.5, 1.0, 2.0], "noise": ["shared"]}
