@@ -88,7 +88,7 @@ def _coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
     prev = np.inf
     it = 0
     for it in range(1, max_iter + 1):
-        C = _fista_codes(Z, D, alpha, C0=C, n_iter=100)
+        C = _fista_codes(Z, D, alpha, C0=C, n_iter=60)
         A = C.T @ C
         B = Z.T @ C  # (p, K)
         for k in range(n_components):
