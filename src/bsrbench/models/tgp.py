@@ -16,7 +16,7 @@ with ``K_Y(y, y) = 1 + lambda_y`` constant for the Gaussian kernel. Its gradient
 
 Everything that does not depend on the test pose is computed before the per-point optimisation:
 the factorisations of the training kernel matrices (in ``fit``), and ``u``/``eta_x`` of ALL test points by
-one matrix solve. The kNN-restricted variant (``n_neighbors=k``, as in the authors' code for speed) uses,
+one matrix solve. The kNN-restricted variant (``n_neighbors=k``, a local approximation for speed) uses,
 for each test point, only the k training pairs nearest in feature space; its k x k matrices are factorised
 for all test points at once by batched LAPACK calls.
 """
