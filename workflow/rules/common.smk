@@ -159,12 +159,30 @@ def subjective_inputs(wildcards):
     shown = [m for m in config["report"]["subjective_methods"] if m in run_methods()]
     acts = config["study_activities"][wildcards.source]
     return {
+        "poses": [
+            f"results/mocap/{wildcards.source}/{a}.npz"
+            for a in acts
+            if is_motion(wildcards.source, a)
+        ],
         "features": [f"results/features/{wildcards.source}/{a}.npz" for a in acts],
         "predictions": [
             f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{n}/seed0.npz"
             for a in acts
             for m in shown
         ],
+    }
+
+
+def subjective_motion(wildcards):
+    """For motion-capture activities: poses file, trial files and render settings (for stick figures)."""
+    return {
+        a: {
+            "poses": f"results/mocap/{wildcards.source}/{a}.npz",
+            "files": list(dataset(wildcards.source, a)["files"]),
+            "render": render_params(),
+        }
+        for a in config["study_activities"][wildcards.source]
+        if is_motion(wildcards.source, a)
     }
 
 

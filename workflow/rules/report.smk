@@ -136,6 +136,7 @@ rule plot_subjective:
             for a, pa in activity_labels(w.source).items()
         },
         labels=method_labels(),
+        motion=subjective_motion,
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

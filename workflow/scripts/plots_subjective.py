@@ -1,18 +1,32 @@
-"""Snakemake adapter of rule plot_subjective: one test frame per activity, true and predicted poses."""
+"""Snakemake adapter of rule plot_subjective: one test frame per activity, true and predicted poses.
+
+Motion-capture sources (BVH trials) get the paper's Fig. 2 layout: the rendered silhouette and 3-D stick
+figures of the true and predicted poses (forward kinematics of the trial's skeleton). Sources with joint
+angles only (the precomputed hsc features) get the input histogram and angle profiles.
+"""
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
 from bsrbench.metrics import wrap_degrees  # noqa: E402
-from bsrbench.reporting.plots import plot_subjective, save, subjective_panels  # noqa: E402
+from bsrbench.reporting.plots import (  # noqa: E402
+    plot_subjective,
+    plot_subjective_sticks,
+    pose_positions,
+    save,
+    subjective_panels,
+)
 from bsrbench.study import load_features  # noqa: E402
 
 sm = snakemake  # noqa: F821
 methods = list(sm.params.methods)
 activities = list(sm.params.activities)
+labels = dict(sm.params.labels)
+motion = dict(sm.params.motion)
 
 
 def frame_errors(y_true, y_pred):
@@ -27,5 +41,42 @@ for i, activity in enumerate(activities):
         with np.load(sm.input.predictions[i * len(methods) + j]) as f:
             preds[m] = {k: f[k] for k in ("test", "y_true", "y_pred")}
     items.append((activity, dict(sm.params.labels_activity)[activity], load_features(sm.input.features[i]), preds))
-fig = plot_subjective(subjective_panels(items, methods, frame_errors), labels=dict(sm.params.labels))
+panels = subjective_panels(items, methods, frame_errors)
+
+sticks = bool(panels) and all(
+    a in motion and all(str(f).endswith(".bvh") for f in motion[a]["files"]) for a in activities
+)
+if sticks:
+    from bsrbench.mocap import parse_bvh
+    from bsrbench.render import render_silhouettes
+
+    stick_panels = []
+    for pnl in panels:
+        a = pnl["activity"]
+        with np.load(motion[a]["poses"]) as f:
+            mo = {k: f[k] for k in f.files}
+        # the features file's rows are the poses file's rows
+        k = int(pnl["frame"])
+        tid = str(mo["trial_ids"][int(mo["trial_index"][k])])
+        path = next(p for p in motion[a]["files"] if Path(p).stem == tid)
+        bvh = parse_bvh(path)
+        tf = int(mo["trial_frames"][k])
+        pj = [str(j) for j in mo["pose_joints"]]
+        sil = render_silhouettes(
+            mo["positions"][k : k + 1], mo["parents"], [str(j) for j in mo["joint_names"]], **motion[a]["render"]
+        )[0]
+        stick_panels.append(
+            {
+                "label": pnl["label"],
+                "frame": k,
+                "silhouette": sil,
+                "parents": mo["parents"],
+                "true": pose_positions(bvh, tf, pj, pnl["y_true"]),
+                "preds": {m: pose_positions(bvh, tf, pj, y) for m, y in pnl["preds"].items()},
+                "errors": pnl["errors"],
+            }
+        )
+    fig = plot_subjective_sticks(stick_panels, labels=labels)
+else:
+    fig = plot_subjective(panels, labels=labels)
 save(fig, [sm.output.pdf, sm.output.png])

@@ -11,9 +11,10 @@ from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E
 sm = snakemake  # noqa: F821
 CAPTIONS = {
     "error_vs_ntrain": "Error against training-set size, mean $\\pm$ std over seeds; open markers: the paper.",
-    "subjective": "Subjective comparison (the paper's Fig.~2 idea) for one test frame per activity: input "
-    "histogram of shape contexts, true joint angles and the predictions. The precomputed features come with "
-    "joint angles only (skeleton convention undocumented), so poses are drawn as angle profiles, not stick figures.",
+    "subjective": "Subjective comparison (the paper's Fig.~2 idea), one test frame per activity (largest $N$, "
+    "seed 0). Motion-capture data: the rendered silhouette and 3-D stick figures of the true and predicted poses "
+    "(forward kinematics of the trial's skeleton). Precomputed features (hsc): they come with joint angles only, "
+    "in an undocumented skeleton convention, so the input histogram and angle profiles are drawn instead.",
     "calibration": "Calibration: empirical against nominal coverage of the central predictive intervals.",
     "trace": "MCMC traces of one PM fit (first activity, largest $N$, seed 0).",
 }

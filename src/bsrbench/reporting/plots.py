@@ -199,3 +199,67 @@ def subjective_panels(items, methods, error_fn):
             panel["errors"][m] = float(error_fn(preds[m]["y_true"][k : k + 1], preds[m]["y_pred"][k : k + 1])[0])
         panels.append(panel)
     return panels
+
+
+# ------------------------------------------------------------------------------------ stick figures (mocap)
+def pose_positions(bvh, trial_frame, pose_joints, angles):
+    """Joint positions (J, 3) of a BVH skeleton with the pose angles replaced by ``angles`` (degrees).
+
+    The motion row ``trial_frame`` of ``bvh`` (a :class:`bsrbench.mocap.BVHData`) supplies every channel
+    that is not a pose angle (root translation, fingers, ...); the 57 pose angles (``pose_joints`` x 3, in
+    the order of :func:`bsrbench.mocap.pose_columns`) come from ``angles``. Forward kinematics gives the
+    positions, centred on the root.
+    """
+    from ..mocap import pose_columns, skeleton_positions
+
+    row = np.array(bvh.motion[int(trial_frame)], dtype=float)
+    cols, _ = pose_columns(bvh.skeleton, list(pose_joints))
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape != cols.shape:
+        raise ValueError(f"expected {cols.size} pose angles for joints {list(pose_joints)}; got {angles.shape}")
+    keep = cols >= 0
+    row[cols[keep]] = angles[keep]
+    pos = skeleton_positions(bvh.skeleton, row[None])[0]
+    return pos - pos[0]
+
+
+def _stick(ax, pos, parents, color):
+    for j, p in enumerate(parents):
+        if p >= 0:
+            # world y is up: draw (x, z, y) so that the figure stands upright
+            ax.plot([pos[p, 0], pos[j, 0]], [pos[p, 2], pos[j, 2]], [pos[p, 1], pos[j, 1]], color=color, lw=1.2)
+
+
+def plot_subjective_sticks(panels, *, labels):
+    """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as 3-D stick figures.
+
+    ``panels``: dicts with ``label``, ``frame``, ``silhouette`` (H, W bool), ``parents``, ``true`` (J, 3),
+    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}).
+    """
+    n = max(1, len(panels))
+    ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
+    fig = plt.figure(figsize=(1.9 * ncol, 2.1 * n))
+    for r, pnl in enumerate(panels):
+        ax = fig.add_subplot(n, ncol, r * ncol + 1)
+        ax.imshow(pnl["silhouette"], cmap="gray_r", interpolation="nearest")
+        ax.set_axis_off()
+        ax.set_title(f"{pnl['label']}\nsilhouette, frame {pnl['frame']}", fontsize=7)
+        allpos = np.concatenate([pnl["true"]] + list(pnl["preds"].values()))
+        lo, hi = allpos.min(axis=0), allpos.max(axis=0)
+        half = 0.5 * float((hi - lo).max())
+        mid = 0.5 * (hi + lo)
+        figs = [("true pose", pnl["true"], "k")] + [
+            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", pos, f"C{i}") for i, (m, pos) in enumerate(pnl["preds"].items())
+        ]
+        for c, (title, pos, color) in enumerate(figs):
+            ax = fig.add_subplot(n, ncol, r * ncol + 2 + c, projection="3d")
+            _stick(ax, pos, pnl["parents"], color)
+            ax.set_xlim(mid[0] - half, mid[0] + half)
+            ax.set_ylim(mid[2] - half, mid[2] + half)
+            ax.set_zlim(mid[1] - half, mid[1] + half)
+            ax.view_init(elev=10, azim=-90)
+            ax.set_xticks([]), ax.set_yticks([]), ax.set_zticks([])
+            ax.set_title(title, fontsize=7)
+    fig.suptitle("Subjective comparison (one test frame per activity: median error of the first method)")
+    fig.tight_layout()
+    return fig
