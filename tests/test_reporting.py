@@ -106,6 +106,8 @@ def test_findings_count_where_the_claim_holds():
     text = "\n".join(findings(df, _paper(), labels=LABELS))
     assert re.search(r"PM beats every baseline \(RVM\) at \$N=30\$'': holds only partly, for 1 of 2 activities", text)
     assert "fails for Acrobatics (hsc)" in text
+    assert "lowest among the paper's methods in 1 of 2 (activity, $N$) rows" in text
+    assert "including the references in 0 of 2" in text
     assert "PM is lower for 0 of 2 activities" in text  # 1-NN beats PM on both
     assert "on 2 of 4 random splits" in text
     # ours / paper: PM golf 8.5/8.241, acrobatics 16.5/12.595 -> median of the two ratios
