@@ -38,10 +38,9 @@ def test_lint_has_nothing_to_say_about_the_study_rules():
     [
         (),
         ("--configfile", "config/paper.yaml"),
-        ("--configfile", "config/ci.yaml"),
         ("--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml"),
     ],
-    ids=["default", "paper", "ci", "slurm-profile"],
+    ids=["default", "paper", "slurm-profile"],
 )
 def test_dry_run(args):
     res = smk("-n", "--cores", "2", *args) if "--profile" not in args else smk("-n", *args)
