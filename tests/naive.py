@@ -21,9 +21,11 @@ def log_sigmoid(x):
 
 
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
-    """(b_ki, s_ki) block update, i outer and k inner; uniform then normal per pair."""
+    """(b_ki, s_ki) block update, i outer and k inner; per point, K uniforms then K normals are drawn."""
     N, K = B.shape
     for i in range(N):
+        U = rng.random(K)
+        Zn = rng.standard_normal(K)
         for k in range(K):
             d = D[k]
             a_old = S[i, k] * B[i, k]
@@ -31,8 +33,8 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             tau = g_s + g_xy * np.dot(d, d)
             mu = g_xy * np.dot(d, r_minus) / tau
             logit = W[i, k] + 0.5 * np.log(g_s / tau) + 0.5 * tau * mu**2
-            on = rng.random() < sigmoid(logit)
-            z = rng.standard_normal()
+            on = U[k] < sigmoid(logit)
+            z = Zn[k]
             s = mu + z / np.sqrt(tau) if on else z / np.sqrt(g_s)
             B[i, k] = int(on)
             S[i, k] = s

@@ -38,8 +38,6 @@ _VEC = {"reassoc", "contract"}
 
 W_UPDATES = {"mh": 0, "ess": 1, "paper-as-printed": 2}
 
-_LOG_2PI = np.log(2.0 * np.pi)
-
 
 # ----------------------------------------------------------------------------------------------------------
 # small helpers
@@ -58,17 +56,6 @@ def _axpy(alpha, x, y):
     """y += alpha * x (in place)."""
     for m in range(x.shape[0]):
         y[m] += alpha * x[m]
-
-
-@njit(cache=True, fastmath=_VEC)
-def _axpy_dot(alpha, x, y, b):
-    """y += alpha * x, then return b . y, in one pass over y."""
-    acc = 0.0
-    for m in range(x.shape[0]):
-        v = y[m] + alpha * x[m]
-        y[m] = v
-        acc += b[m] * v
-    return acc
 
 
 @njit(cache=True)
@@ -102,12 +89,6 @@ def _codes_from(B, S):
 def _row_norms(D, norms):
     for k in range(D.shape[0]):
         norms[k] = _dot(D[k], D[k])
-
-
-@njit(cache=True)
-def _residual(V, B, S, D, R):
-    """R = V - A D, recomputed from scratch (BLAS-3)."""
-    R[:, :] = V - _codes_from(B, S) @ D
 
 
 @njit(cache=True, fastmath=_VEC)
@@ -183,7 +164,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
 
     With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
-    ``s ~ N(0, 1/g_s)``. Draw order per (i, k): one uniform (for b), then one standard normal (for s).
+    ``s ~ N(0, 1/g_s)``. Draw order per point i: K uniforms (for b_i1..b_iK), then K standard normals (s).
     The residual row r_i is updated in place by ``d_k (alpha_old - alpha_new)``: O(M) per (i, k).
     Software-pipelined: ``d_{k+1} . r`` is computed before atom k's change ``delta`` is known and corrected
     by ``delta d_k . d_{k+1}``, so the next dot product overlaps the current atom's scalar work.
@@ -199,8 +180,15 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         half_log[k] = 0.5 * np.log(g_s / tau[k])
         sd_on[k] = 1.0 / np.sqrt(tau[k])
     gnext = _adjacent_gram(D, 0, M)
+    U = np.empty(K)
+    Zn = np.empty(K)
     for i in range(N):
         r = R[i]
+        # this point's random numbers up front: no opaque generator calls inside the atom loop
+        for k in range(K):
+            U[k] = rng.random()
+        for k in range(K):
+            Zn[k] = rng.standard_normal()
         proj_next = _dot(D[0], r)
         for k in range(K):
             d = D[k]
@@ -210,15 +198,12 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             a_old = S[i, k] if B[i, k] else 0.0
             mu = g_xy * (proj + a_old * norms[k]) / tau[k]
             logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
-            u = rng.random()
-            on = u < _sigmoid(logit)
-            z = rng.standard_normal()
-            if on:
-                s = mu + z * sd_on[k]
-                a_new = s
-            else:
-                s = z * sd_off
-                a_new = 0.0
+            # u < sigmoid(logit), branch-free (exp(-logit) = inf gives False, as it should for u > 0)
+            on = U[k] * (1.0 + np.exp(-logit)) < 1.0
+            z = Zn[k]
+            s_on = mu + z * sd_on[k]
+            s = s_on if on else z * sd_off
+            a_new = s_on if on else 0.0
             delta = a_old - a_new
             if delta != 0.0:
                 _axpy(delta, d, r)
