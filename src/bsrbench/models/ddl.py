@@ -201,5 +201,6 @@ class DDL(RegressorMixin, BaseEstimator):
         return _format_output(self, P)
 
 
-DEFAULT_GRID = {"n_components": [50, 100], "alpha": [0.01, 0.03]}
-"""Grid of the study: dictionary size and code sparsity (``random_state`` set by the caller)."""
+DEFAULT_GRID = {"n_components": [100], "alpha": [0.01, 0.03, 0.1]}
+"""Grid of the study: code sparsity, with 100 atoms (better than 50 at N = 200 on the hsc features and
+no worse at N = 30; a second size would double the tuning time). ``random_state`` is set by the caller."""

