@@ -125,3 +125,10 @@ def test_errors_are_clear():
     # too few rows in a training fold for the neighbours: the estimator's own error surfaces
     with pytest.raises(InputError, match=r"n_neighbors=18 exceeds .* n_samples = 16"):
         tune(NearestNeighbourRegressor(), {"n_neighbors": [18]}, X, Y, cv=5)
+
+
+def test_predict_time_values_come_from_the_grid_not_the_base_estimator():
+    # the base estimator's n_neighbors=50 would not fit on 16-row folds; the grid's values do
+    X, Y = _curve(20, 6)
+    res = tune(NearestNeighbourRegressor(n_neighbors=50), {"n_neighbors": [1, 2]}, X, Y, cv=5)
+    assert res.best_params == {"n_neighbors": 1}

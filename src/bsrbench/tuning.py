@@ -84,7 +84,8 @@ def _normalise_grid(estimator, param_grid):
 
 def _fit_and_score(estimator, fit_params, predict_settings, X, Y, Yfit, train, test, pose_transform):
     """Fit once with ``fit_params``; score each predict-time setting. Returns (fit_time, [(err, t_pred)])."""
-    est = clone(estimator).set_params(**fit_params)
+    # the fitted instance carries the first predict-time setting, so fit validates a value from the grid
+    est = clone(estimator).set_params(**fit_params, **predict_settings[0])
     t0 = time.perf_counter()
     est.fit(X[train], Yfit[train])
     fit_time = time.perf_counter() - t0
