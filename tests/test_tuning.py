@@ -131,4 +131,6 @@ def test_predict_time_values_come_from_the_grid_not_the_base_estimator():
     # the base estimator's n_neighbors=50 would not fit on 16-row folds; the grid's values do
     X, Y = _curve(20, 6)
     res = tune(NearestNeighbourRegressor(n_neighbors=50), {"n_neighbors": [1, 2]}, X, Y, cv=5)
-    assert res.best_params == {"n_neighbors": 1}
+    ref = tune(NearestNeighbourRegressor(), {"n_neighbors": [1, 2]}, X, Y, cv=5)
+    np.testing.assert_array_equal(res.cv_results["mean_error"], ref.cv_results["mean_error"])
+    assert res.best_params == ref.best_params
