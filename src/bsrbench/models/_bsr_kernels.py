@@ -38,6 +38,9 @@ _VEC = {"reassoc", "contract"}
 
 W_UPDATES = {"mh": 0, "ess": 1, "paper-as-printed": 2}
 
+# Test points whose code sweeps are interleaved atom by atom in prediction.
+_PRED_BLOCK = 4
+
 
 # ----------------------------------------------------------------------------------------------------------
 # small helpers
@@ -56,6 +59,22 @@ def _axpy(alpha, x, y):
     """y += alpha * x (in place)."""
     for m in range(x.shape[0]):
         y[m] += alpha * x[m]
+
+
+@njit(cache=True, fastmath=_VEC)
+def _dot_rows(A, i, B, k, n):
+    """A[i, :n] . B[k, :n] without creating row views (views cost reference-count updates in hot loops)."""
+    acc = 0.0
+    for m in range(n):
+        acc += A[i, m] * B[k, m]
+    return acc
+
+
+@njit(cache=True, fastmath=_VEC)
+def _axpy_rows(alpha, B, k, A, i, n):
+    """A[i, :n] += alpha * B[k, :n] in place, without row views."""
+    for m in range(n):
+        A[i, m] += alpha * B[k, m]
 
 
 @njit(cache=True)
@@ -94,30 +113,26 @@ def _row_norms(D, norms):
 @njit(cache=True, fastmath=_VEC)
 def _trsv_rows(L, Z, j0, j1, transpose):
     """Unblocked triangular solve on rows j0:j1 of Z (in place) with the diagonal block L[j0:j1, j0:j1]:
-    ``L_b X = Z_b`` (forward) or ``L_b^T X = Z_b`` (backward, ``transpose``)."""
+    ``L_b X = Z_b`` (forward) or ``L_b^T X = Z_b`` (backward, ``transpose``). Indexed, no row views."""
     ncol = Z.shape[1]
     if not transpose:
         for j in range(j0, j1):
-            zj = Z[j]
             for i in range(j0, j):
                 lji = L[j, i]
-                zi = Z[i]
                 for m in range(ncol):
-                    zj[m] -= lji * zi[m]
+                    Z[j, m] -= lji * Z[i, m]
             inv = 1.0 / L[j, j]
             for m in range(ncol):
-                zj[m] *= inv
+                Z[j, m] *= inv
     else:
         for j in range(j1 - 1, j0 - 1, -1):
-            zj = Z[j]
             for i in range(j + 1, j1):
                 lij = L[i, j]
-                zi = Z[i]
                 for m in range(ncol):
-                    zj[m] -= lij * zi[m]
+                    Z[j, m] -= lij * Z[i, m]
             inv = 1.0 / L[j, j]
             for m in range(ncol):
-                zj[m] *= inv
+                Z[j, m] *= inv
 
 
 @njit(cache=True)
@@ -183,18 +198,16 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     U = np.empty(K)
     Zn = np.empty(K)
     for i in range(N):
-        r = R[i]
         # this point's random numbers up front: no opaque generator calls inside the atom loop
         for k in range(K):
             U[k] = rng.random()
         for k in range(K):
             Zn[k] = rng.standard_normal()
-        proj_next = _dot(D[0], r)
+        proj_next = _dot_rows(R, i, D, 0, M)
         for k in range(K):
-            d = D[k]
             proj = proj_next
             if k + 1 < K:
-                proj_next = _dot(D[k + 1], r)  # r without atom k's change (added below)
+                proj_next = _dot_rows(R, i, D, k + 1, M)  # r without atom k's change (added below)
             a_old = S[i, k] if B[i, k] else 0.0
             mu = g_xy * (proj + a_old * norms[k]) / tau[k]
             logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
@@ -206,7 +219,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             a_new = s_on if on else 0.0
             delta = a_old - a_new
             if delta != 0.0:
-                _axpy(delta, d, r)
+                _axpy_rows(delta, D, k, R, i, M)
                 proj_next += delta * gnext[k]
             B[i, k] = 1 if on else 0
             S[i, k] = s
@@ -329,6 +342,32 @@ def _sum_log_sigmoid(z, w):
 
 
 @njit(cache=True)
+def _log_sigmoid_sum_exceeds(z, w, log_y):
+    """Whether sum_i log sigmoid(z_i w_i) > log_y. Every term is <= 0, so the partial sums only decrease:
+    stop with False as soon as one is <= log_y (checked at each flush of the running product)."""
+    acc = 0.0
+    prod = 1.0
+    cnt = 0
+    for i in range(w.shape[0]):
+        x = z[i] * w[i]
+        sg, _ = _sig_pair(x)
+        if sg > _TINY:
+            prod *= sg
+            cnt += 1
+            if cnt == _FLUSH:
+                acc += np.log(prod)
+                prod = 1.0
+                cnt = 0
+                if acc <= log_y:
+                    return False
+        else:
+            acc += _log_sigmoid(x)
+            if acc <= log_y:
+                return False
+    return acc + np.log(prod) > log_y
+
+
+@njit(cache=True)
 def _bound_terms(Zt, Wt, Lam, Sig):
     """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w): the tight bound's Lambda) and
     Sig = sigmoid(z w), elementwise over (K, N) arrays."""
@@ -423,7 +462,7 @@ def update_w_ess(W, B, Lw, rng):
             sn = np.sin(theta)
             for i in range(N):
                 wp[i] = wk[i] * c + nk[i] * sn
-            if _sum_log_sigmoid(zk, wp) > log_y:
+            if _log_sigmoid_sum_exceeds(zk, wp, log_y):
                 break
             if theta < 0.0:
                 lo = theta
@@ -651,64 +690,78 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
             tau[l, k] = gs[l] + gxy[l] * nx[l, k]
             half_log[l, k] = 0.5 * np.log(gs[l] / tau[l, k])
             sd_on[l, k] = 1.0 / np.sqrt(tau[l, k])
-    r = np.empty(Mx)
-    alpha = np.empty(K)
-    wt = np.empty(K)
+    P = _PRED_BLOCK
+    r = np.empty((P, Mx))  # residuals of a block of test points
+    alpha = np.empty((P, K))
+    wt = np.empty((P, K))
+    pn = np.empty(P)
     gnext = np.empty((L, K))
     for l in range(L):
         gnext[l] = _adjacent_gram(Dx[l], 0, Mx)
     streams = seeds.copy()  # one stream per test point, advanced sample after sample
     spare = np.zeros(T)  # the second normal of the last polar pair, per test point
     has_spare = np.zeros(T, dtype=np.bool_)
-    # samples outer, test points inner: one sample's dictionaries stay in cache for all test points
+    # samples outer, test points inner: one sample's dictionaries stay in cache for all test points;
+    # blocks of _PRED_BLOCK test points are interleaved atom by atom (independent chains overlap in the CPU)
     for l in range(L):
         g_s = gs[l]
         g_xy = gxy[l]
         Dxl = Dx[l]
-        for t in range(T):
-            st = streams[t]
-            sp = spare[t]
-            hs = has_spare[t]
-            wt[:] = 0.0
-            for q in range(nj):
-                wt += Ws[l, nbr[t, q]]
-            wt /= nj
-            r[:] = Xt[t]
-            alpha[:] = 0.0
-            for _ in range(n_sweeps):
-                proj_next = _dot(Dxl[0], r)
+        for t0 in range(0, T, P):
+            nb = min(P, T - t0)
+            for p in range(nb):
+                t = t0 + p
                 for k in range(K):
-                    d = Dxl[k]
-                    proj = proj_next
-                    if k + 1 < K:
-                        proj_next = _dot(Dxl[k + 1], r)  # corrected below (see update_codes)
-                    a_old = alpha[k]
-                    mu = g_xy * (proj + a_old * nx[l, k]) / tau[l, k]
-                    logit = wt[k] + half_log[l, k] + 0.5 * tau[l, k] * mu * mu
-                    st, u = _uniform(st)
-                    if u * (1.0 + np.exp(-logit)) < 1.0:  # u < sigmoid(logit)
-                        if hs:
-                            z = sp
-                            hs = False
+                    wt[p, k] = 0.0
+                for q in range(nj):
+                    for k in range(K):
+                        wt[p, k] += Ws[l, nbr[t, q], k]
+                for k in range(K):
+                    wt[p, k] /= nj
+                    alpha[p, k] = 0.0
+                for m in range(Mx):
+                    r[p, m] = Xt[t, m]
+            for _ in range(n_sweeps):
+                for p in range(nb):
+                    pn[p] = _dot_rows(Dxl, 0, r, p, Mx)
+                for k in range(K):
+                    for p in range(nb):
+                        t = t0 + p
+                        proj = pn[p]
+                        if k + 1 < K:
+                            pn[p] = _dot_rows(Dxl, k + 1, r, p, Mx)  # corrected below (see update_codes)
+                        a_old = alpha[p, k]
+                        mu = g_xy * (proj + a_old * nx[l, k]) / tau[l, k]
+                        logit = wt[p, k] + half_log[l, k] + 0.5 * tau[l, k] * mu * mu
+                        st, u = _uniform(streams[t])
+                        if u * (1.0 + np.exp(-logit)) < 1.0:  # u < sigmoid(logit)
+                            if has_spare[t]:
+                                z = spare[t]
+                                has_spare[t] = False
+                            else:
+                                st, z, z2 = _normal_pair(st)
+                                spare[t] = z2
+                                has_spare[t] = True
+                            a_new = mu + z * sd_on[l, k]
                         else:
-                            st, z, sp = _normal_pair(st)
-                            hs = True
-                        a_new = mu + z * sd_on[l, k]
-                    else:
-                        a_new = 0.0  # s of an inactive atom does not enter the prediction
-                    delta = a_old - a_new
-                    if delta != 0.0:
-                        _axpy(delta, d, r)
-                        proj_next += delta * gnext[l, k]
-                    alpha[k] = a_new
-            out_y[t, l, :] = 0.0
-            for k in range(K):
-                if alpha[k] != 0.0:
-                    _axpy(alpha[k], Dy[l, k], out_y[t, l])
-            out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * _dot(r, r)
-            streams[t] = st
-            spare[t] = sp
-            has_spare[t] = hs
+                            a_new = 0.0  # s of an inactive atom does not enter the prediction
+                        streams[t] = st
+                        delta = a_old - a_new
+                        if delta != 0.0:
+                            _axpy_rows(delta, Dxl, k, r, p, Mx)
+                            pn[p] += delta * gnext[l, k]
+                        alpha[p, k] = a_new
+            for p in range(nb):
+                t = t0 + p
+                for m in range(out_y.shape[2]):
+                    out_y[t, l, m] = 0.0
+                for k in range(K):
+                    a = alpha[p, k]
+                    if a != 0.0:
+                        for m in range(out_y.shape[2]):
+                            out_y[t, l, m] += a * Dy[l, k, m]
+                rr = _dot_rows(r, p, r, p, Mx)
+                out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
 
 
 @njit(cache=True)
