@@ -63,8 +63,10 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     w_update : {"ess", "mh", "paper-as-printed"}, default="ess"
         Update of the logits: elliptical slice sampling (Murray, Adams & MacKay 2010), the bound-based
         Metropolis-Hastings proposal of the paper with the correct acceptance ratio, or the paper's printed
-        (incorrect) ratio, kept only as an ablation. Both exact updates target the same posterior; ESS is
-        the default because the MH proposal is a global move whose acceptance collapses as N grows.
+        (incorrect) ratio, kept only as an ablation. Both exact updates pass the Geweke test; ESS is the
+        default because it mixes far better: the MH proposal ``N(Sigma Lambda(w), Sigma)`` is a global move
+        whose acceptance collapses with N (about 0.3% at N = 100 on the authors' features, against the
+        paper's reported > 94%), while ESS always moves at a similar cost per sweep.
     n_predict_sweeps : int, default=10
         Gibbs sweeps of a test point's codes per posterior sample (from zero codes).
     prediction_weighting : {"uniform", "likelihood"}, default="uniform"
