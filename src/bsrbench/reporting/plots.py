@@ -37,7 +37,8 @@ def save(fig, paths):
 def _grid(n):
     cols = min(3, n)
     rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    # at least two panels wide, so that a one-panel figure is not blown up to the text width
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * max(cols, 2), 2.6 * rows), squeeze=False)
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat)
