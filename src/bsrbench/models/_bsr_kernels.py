@@ -673,8 +673,9 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     For test point t and sample l: ``w_t = mean_{i in J_t} W^l[i, :]`` (J_t = its neighbours, ``nbr[t]``);
     ``n_sweeps`` sweeps of the (b, s) block update restricted to the feature rows, from zero codes;
     ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
-    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]`` (uniforms; normals by the
-    polar method, pairs used in turn).
+    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]``
+    (uniforms; normals by the polar method, pairs used in turn), so a point's prediction does not depend on
+    the batch. Test points are processed in interleaved blocks of ``_PRED_BLOCK``; samples are the outer loop.
     Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
     """
     T, Mx = Xt.shape
