@@ -196,14 +196,15 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             rf"\label{{tab:{table}-{source}-{protocol}}}",
             r"\begin{tabular}{@{}p{2.9cm}r" + "c" * len(methods) + "@{}}",
             r"\toprule",
-            _row(["Activity", r"Tr.\ \#"] + [latex_escape(labels.get(m, m)) for m in methods]),
+            # fixed-width headers keep the columns apart in tables whose rows are all notes
+            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[1.8cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
         ]
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
             name = latex_escape(paper_name)
             activity = status.get(paper_name, f"no {source} data on this machine")
             if activity not in set(sp["activity"]):
-                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\emph{{{latex_escape(activity)}}}}}"
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\raggedright\emph{{{latex_escape(activity)}}}}}"
                 out.append(_row([name, note]))
                 continue
             for n in sizes:
