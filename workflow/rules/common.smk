@@ -46,6 +46,8 @@ def _check_study_config():
             raise ValueError(
                 f"config key 'report.subjective_methods': unknown method {m!r}; defined: {sorted(methods)}"
             )
+    if not any(config["study_activities"].values()):
+        raise ValueError("config key 'study_activities': no activity to study (every source has an empty list)")
     for source, acts in config["study_activities"].items():
         known = _data_activities(source)
         if not known:
@@ -134,7 +136,8 @@ def method_grid(wildcards):
 
 
 def report_sources():
-    return list(config["study_activities"])
+    """Data sources with at least one studied activity."""
+    return [s for s, acts in config["study_activities"].items() if acts]
 
 
 def table_targets():
