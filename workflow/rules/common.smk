@@ -1,6 +1,4 @@
 # Configuration validation, cross-checks and helpers of the study rules (fit, aggregate, report).
-import json
-from pathlib import Path
 
 from snakemake.utils import validate
 
