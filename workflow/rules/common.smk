@@ -1,5 +1,8 @@
 # Configuration validation, cross-checks and helpers of the study rules (fit, aggregate, report).
 
+import importlib.util
+from pathlib import Path
+
 from snakemake.utils import validate
 
 
@@ -109,6 +112,23 @@ def fit_targets(ext="json"):
         for n in config["n_train"]
         for k in seeds()
     ]
+
+
+def estimator_sources(wildcards):
+    """Source files of a method's estimator and of the job logic: editing a model reruns its jobs.
+
+    The estimator's module, the module's private helpers (e.g. _bsr_kernels.py for bsr.py), bsrbench.study.
+    """
+    modname = method_setting(wildcards.method)["estimator"].split(":")[0]
+    spec = importlib.util.find_spec(modname)
+    if spec is None or spec.origin is None:
+        raise ValueError(
+            f"config key 'methods.{wildcards.method}.estimator': module {modname!r} not found"
+        )
+    origin = Path(spec.origin)
+    helpers = sorted(origin.parent.glob(f"_{origin.stem}_*.py"))
+    study = Path(importlib.util.find_spec("bsrbench.study").origin)
+    return [str(p) for p in [origin, *helpers, study]]
 
 
 def cv_input(wildcards):

@@ -4,6 +4,7 @@
 rule cv:
     input:
         features="results/features/{source}/{activity}.npz",
+        code=estimator_sources,
     output:
         "results/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
     log:
@@ -33,6 +34,7 @@ rule fit:
     input:
         features="results/features/{source}/{activity}.npz",
         cv=cv_input,
+        code=estimator_sources,
     output:
         row="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
         predictions="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.npz",
