@@ -239,7 +239,7 @@ def plot_subjective_sticks(panels, *, labels):
     """
     n = max(1, len(panels))
     ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
-    fig = plt.figure(figsize=(1.9 * ncol, 2.1 * n))
+    fig = plt.figure(figsize=(1.6 * ncol, 2.8 * n))
     for r, pnl in enumerate(panels):
         ax = fig.add_subplot(n, ncol, r * ncol + 1)
         ax.imshow(pnl["silhouette"], cmap="gray_r", interpolation="nearest")
@@ -259,7 +259,8 @@ def plot_subjective_sticks(panels, *, labels):
             ax.set_ylim(mid[2] - half, mid[2] + half)
             ax.set_zlim(mid[1] - half, mid[1] + half)
             ax.view_init(elev=10, azim=-90)
-            ax.set_xticks([]), ax.set_yticks([]), ax.set_zticks([])
+            ax.set_box_aspect((1, 1, 1), zoom=1.4)
+            ax.set_axis_off()
             ax.set_title(title, fontsize=7)
     fig.suptitle("Subjective comparison (one test frame per activity: median error of the first method)")
     fig.tight_layout()
