@@ -100,3 +100,19 @@ def test_atomic_path_output_has_umask_permissions(tmp_path):
     finally:
         os.umask(mask)
     assert (tmp_path / "b.txt").stat().st_mode & 0o777 == 0o644
+
+
+def test_heading_column_comes_from_the_features_file(tmp_path):
+    from bsrbench.study import load_features
+
+    rng = np.random.default_rng(3)
+    X, Y = rng.normal(size=(10, 4)), rng.uniform(-170, 170, size=(10, 6))
+    np.savez(tmp_path / "bvh.npz", X=X, Y=Y, heading_column=1)
+    np.savez(tmp_path / "mat.npz", X=X, Y=Y)
+    for name, col in (("bvh.npz", 1), ("mat.npz", 2)):
+        feats = load_features(tmp_path / name)
+        assert feats["heading_column"] == col
+        t = get_pose_transform("heading", column=feats["heading_column"])
+        Z = t.forward(Y)
+        np.testing.assert_allclose(np.rad2deg(np.arctan2(Z[:, -2], Z[:, -1])), Y[:, col], atol=1e-9)
+        np.testing.assert_allclose(t.inverse(Z), Y, atol=1e-9)

@@ -44,10 +44,11 @@ class IdentityTransform:
         return np.asarray(Z, dtype=float)
 
 
-def get_pose_transform(name):
-    """``"none"`` or ``"heading"`` (20 sin / 20 cos of angle 3)."""
+def get_pose_transform(name, column=2):
+    """``"none"`` or ``"heading"`` (20 sin / 20 cos of the heading angle, column ``column``: 2 in the
+    authors' features, 1 in the CMU BVH joint maps, as stored in each features file)."""
     if name in (None, "none"):
         return IdentityTransform()
     if name == "heading":
-        return HeadingTransform()
+        return HeadingTransform(column=column)
     raise InputError(f"pose_transform must be 'none' or 'heading'; got {name!r}")

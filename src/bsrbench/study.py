@@ -95,6 +95,8 @@ def load_features(path):
         out["angle_names"] = [str(a) for a in data["angle_names"]]
     else:
         out["angle_names"] = [f"angle{i}" for i in range(Y.shape[1])]
+    # Column of the root's heading angle (2 for the authors' features, 1 for the CMU BVH joint maps).
+    out["heading_column"] = int(data["heading_column"]) if "heading_column" in data else 2
     return out
 
 
@@ -252,7 +254,7 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
             Y[train],
             cv=int(folds),
             random_state=spec.method_seed,
-            pose_transform=get_pose_transform(spec.pose_transform),
+            pose_transform=get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2)),
         )
         best, score, n_fits = dict(res.best_params), res.best_score, res.n_fits
         table = res.cv_results.drop(columns=["params"], errors="ignore").to_dict(orient="records")
@@ -290,7 +292,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     """
     X, Y = features["X"], features["Y"]
     train, test = spec.split(X.shape[0])
-    transform = get_pose_transform(spec.pose_transform)
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
     est = make_estimator(estimator, params, random_state=spec.method_seed)
 
     t0 = time.perf_counter()
