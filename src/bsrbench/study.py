@@ -214,6 +214,23 @@ class JobSpec:
     gap: int = 30
     paper_activity: str = ""
 
+    @classmethod
+    def from_wildcards(cls, wildcards, params):
+        """The spec of a workflow job: identity from its wildcards, settings from its params
+        (``pose_transform``, ``min_test``, ``gap`` and, if present, ``paper_activity``)."""
+        return cls(
+            source=wildcards.source,
+            activity=wildcards.activity,
+            method=wildcards.method,
+            n_train=int(wildcards.n_train),
+            seed=int(wildcards.seed),
+            protocol=wildcards.protocol,
+            pose_transform=params.pose_transform,
+            min_test=int(params.min_test),
+            gap=int(params.gap),
+            paper_activity=getattr(params, "paper_activity", "") or "",
+        )
+
     def split(self, n_frames):
         return make_split(
             n_frames,

@@ -13,17 +13,7 @@ from bsrbench.study import JobSpec, cross_validate, load_features, write_json  #
 
 sm = snakemake  # noqa: F821
 w, p = sm.wildcards, sm.params
-spec = JobSpec(
-    source=w.source,
-    activity=w.activity,
-    method=w.method,
-    n_train=int(w.n_train),
-    seed=int(w.seed),
-    protocol=w.protocol,
-    pose_transform=p.pose_transform,
-    min_test=p.min_test,
-    gap=p.gap,
-)
+spec = JobSpec.from_wildcards(w, p)
 result = cross_validate(
     spec,
     load_features(sm.input.features),

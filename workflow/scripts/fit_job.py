@@ -13,18 +13,7 @@ from bsrbench.study import JobSpec, load_features, read_json, run_job, write_arr
 
 sm = snakemake  # noqa: F821
 w, p = sm.wildcards, sm.params
-spec = JobSpec(
-    source=w.source,
-    activity=w.activity,
-    method=w.method,
-    n_train=int(w.n_train),
-    seed=int(w.seed),
-    protocol=w.protocol,
-    pose_transform=p.pose_transform,
-    min_test=p.min_test,
-    gap=p.gap,
-    paper_activity=p.paper_activity,
-)
+spec = JobSpec.from_wildcards(w, p)
 params, cv_seconds = dict(p.fixed), None
 if sm.input.cv:
     cv = read_json(sm.input.cv)
