@@ -74,7 +74,7 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
 def ci_run(tmp_path_factory):
     """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
     work = tmp_path_factory.mktemp("study")
-    for name in ("Snakefile", "workflow", "config"):
+    for name in ("workflow", "config"):
         src = ROOT / name
         (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
     (work / "reports").mkdir()
