@@ -154,8 +154,8 @@ def setup_text(df, *, labels):
     params = []
     for m in dict.fromkeys(df["method"]):
         ps = sorted(set(df.loc[df["method"] == m, "params"].astype(str)))
-        shown = "; ".join(ps[:3]) + (f"; \\ldots ({len(ps)} settings)" if len(ps) > 3 else "")
-        params.append(f"{latex_escape(labels.get(m, m))}: \\texttt{{{latex_escape(shown)}}}")
+        shown = latex_escape("; ".join(ps[:3])) + (f"; \\ldots\\ ({len(ps)} settings)" if len(ps) > 3 else "")
+        params.append(f"{latex_escape(labels.get(m, m))}: \\texttt{{{shown}}}")
     # One item per method, typeset sloppily: long typewriter runs must break at their spaces, not overflow.
     lines.append(r"Parameters used:\begin{sloppypar}\begin{itemize}" + " ".join(r"\item " + p for p in params)
                  + r"\end{itemize}\end{sloppypar}")
