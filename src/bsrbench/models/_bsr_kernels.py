@@ -321,8 +321,11 @@ _TINY = 1e-30
 
 
 @njit(cache=True)
-def _sum_log_sigmoid(z, w):
-    """sum_i log sigmoid(z_i w_i) for contiguous 1-D z, w (one exp per term, one log per _FLUSH terms)."""
+def _sum_log_sigmoid_above(z, w, floor):
+    """sum_i log sigmoid(z_i w_i) for contiguous 1-D z, w (one exp per term, one log per _FLUSH terms).
+
+    Every term is <= 0, so the partial sums only decrease: once one is <= ``floor`` (checked at each flush of
+    the running product) that partial sum is returned, which is <= ``floor`` as well."""
     acc = 0.0
     prod = 1.0
     cnt = 0
@@ -336,35 +339,25 @@ def _sum_log_sigmoid(z, w):
                 acc += np.log(prod)
                 prod = 1.0
                 cnt = 0
+                if acc <= floor:
+                    return acc
         else:
             acc += _log_sigmoid(x)
+            if acc <= floor:
+                return acc
     return acc + np.log(prod)
 
 
 @njit(cache=True)
+def _sum_log_sigmoid(z, w):
+    """sum_i log sigmoid(z_i w_i) (see _sum_log_sigmoid_above)."""
+    return _sum_log_sigmoid_above(z, w, -np.inf)
+
+
+@njit(cache=True)
 def _log_sigmoid_sum_exceeds(z, w, log_y):
-    """Whether sum_i log sigmoid(z_i w_i) > log_y. Every term is <= 0, so the partial sums only decrease:
-    stop with False as soon as one is <= log_y (checked at each flush of the running product)."""
-    acc = 0.0
-    prod = 1.0
-    cnt = 0
-    for i in range(w.shape[0]):
-        x = z[i] * w[i]
-        sg, _ = _sig_pair(x)
-        if sg > _TINY:
-            prod *= sg
-            cnt += 1
-            if cnt == _FLUSH:
-                acc += np.log(prod)
-                prod = 1.0
-                cnt = 0
-                if acc <= log_y:
-                    return False
-        else:
-            acc += _log_sigmoid(x)
-            if acc <= log_y:
-                return False
-    return acc + np.log(prod) > log_y
+    """Whether sum_i log sigmoid(z_i w_i) > log_y, stopping as soon as a partial sum is <= log_y."""
+    return _sum_log_sigmoid_above(z, w, log_y) > log_y
 
 
 @njit(cache=True)
