@@ -6,6 +6,8 @@ order documented in :mod:`bsrbench.models._bsr_kernels`, so the kernels must rep
 draw (up to floating-point rounding).
 """
 
+import math
+
 import numpy as np
 from scipy.linalg import solve_triangular
 
@@ -159,29 +161,45 @@ def _splitmix(state):
     return state, z ^ (z >> 31)
 
 
+def _ziggurat_tables(n=256, r=3.6541528853610088, v=4.92867323399e-3):
+    """Marsaglia & Tsang (2000): x[0] = v / f(r), x[1] = r, f(x[i + 1]) = f(x[i]) + v / x[i], x[n] = 0."""
+    f = lambda x: math.exp(-0.5 * x * x)  # noqa: E731
+    x = [v / f(r), r]
+    for i in range(1, n - 1):
+        x.append(math.sqrt(-2.0 * math.log(f(x[i]) + v / x[i])))
+    x.append(0.0)
+    return x, [f(xi) for xi in x]
+
+
+ZIG_X, ZIG_F = _ziggurat_tables()
+
+
 class SplitMix:
-    """The prediction stream: splitmix64 uniforms (53 bits) and polar-method normals."""
+    """The prediction stream: splitmix64 uniforms (53 bits) and ziggurat normals."""
 
     def __init__(self, seed):
         self.state = int(seed)
-        self.spare = None
 
     def uniform(self):
         self.state, z = _splitmix(self.state)
         return (z >> 11) / 9007199254740992.0
 
     def normal(self):
-        """Marsaglia's polar method; the second normal of a pair is returned by the next call."""
-        if self.spare is not None:
-            z, self.spare = self.spare, None
-            return z
+        """Ziggurat: layer from bits 0-7, sign from bit 8, abscissa from bits 11-63 of one output."""
+        r = ZIG_X[1]
         while True:
-            v1, v2 = 2.0 * self.uniform() - 1.0, 2.0 * self.uniform() - 1.0
-            q = v1 * v1 + v2 * v2
-            if 0.0 < q < 1.0:
-                f = np.sqrt(-2.0 * np.log(q) / q)
-                self.spare = v2 * f
-                return v1 * f
+            self.state, z = _splitmix(self.state)
+            i, sign = z & 255, -1.0 if (z >> 8) & 1 else 1.0
+            x = (z >> 11) / 9007199254740992.0 * ZIG_X[i]
+            if x < ZIG_X[i + 1]:
+                return sign * x
+            if i == 0:
+                while True:
+                    e1, e2 = -math.log1p(-self.uniform()) / r, -math.log1p(-self.uniform())
+                    if 2.0 * e2 > e1 * e1:
+                        return sign * (r + e1)
+            if ZIG_F[i] + self.uniform() * (ZIG_F[i + 1] - ZIG_F[i]) < math.exp(-0.5 * x * x):
+                return sign * x
 
 
 def point_seed(x, seed):
@@ -211,7 +229,7 @@ def predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, n_sweeps, seed):
                     tau = gs[l] + gxy[l] * d @ d
                     mu = gxy[l] * d @ r_minus / tau
                     logit = wt[k] + 0.5 * np.log(gs[l] / tau) + 0.5 * tau * mu**2
-                    if rs.uniform() < sigmoid(logit):
+                    if logit > 37.0 or rs.uniform() < sigmoid(logit):  # P(on) = 1 in float64: no draw
                         alpha[k] = mu + rs.normal() / np.sqrt(tau)
                     else:
                         alpha[k] = 0.0

@@ -131,12 +131,32 @@ def test_predict_kernel_matches_naive():
 
 
 def test_splitmix_stream_is_uniform():
-    """The prediction stream: uniform on [0, 1) and polar-method normals are standard normal."""
+    """The prediction stream: uniform on [0, 1) and ziggurat normals are standard normal."""
     s = naive.SplitMix(2024)
     u = np.array([s.uniform() for _ in range(4000)])
     z = np.array([s.normal() for _ in range(4000)])
     assert stats.kstest(u, "uniform").pvalue > 1e-3
     assert stats.kstest(z, "norm").pvalue > 1e-3
+
+
+def test_ziggurat_normals_are_standard_normal():
+    """Kernel normals: equal to the reference draw for draw; KS; mean/variance; the tail beyond the base
+    layer's edge r and the wedges (both slow paths) occur at their exact rates."""
+    s = naive.SplitMix(77)
+    np.testing.assert_allclose(kern.stream_normals(77, 3000), [s.normal() for _ in range(3000)], rtol=1e-12)
+    x_tab, f_tab = kern.ziggurat_tables()
+    assert x_tab[1] == kern.ZIG_R and x_tab[-1] == 0.0
+    # equal layer areas: x_i (f(x_{i+1}) - f(x_i)) = v for 1 <= i < 255, and the top layer closes at f = 1
+    np.testing.assert_allclose(x_tab[1:-2] * np.diff(f_tab[1:-1]), kern.ZIG_V, rtol=1e-9)
+    assert abs(x_tab[255] * (1.0 - f_tab[255]) - kern.ZIG_V) < 1e-6 * kern.ZIG_V
+    z = kern.stream_normals(2025, 2_000_000)
+    assert stats.kstest(z[:200_000], "norm").pvalue > 1e-3
+    se = 1 / np.sqrt(z.size)
+    assert abs(z.mean()) < 4 * se and abs(z.var() - 1) < 4 * np.sqrt(2) * se
+    for edge in (1.0, 2.0, kern.ZIG_R, 4.0):  # two-sided tail frequencies, |z| < 4 binomial standard errors
+        p = 2 * stats.norm.sf(edge)
+        count = np.count_nonzero(np.abs(z) > edge)
+        assert abs(count - p * z.size) < 4 * np.sqrt(p * (1 - p) * z.size) + 1, (edge, count, p * z.size)
 
 
 # ---------------------------------------------------------------------------------------------------------

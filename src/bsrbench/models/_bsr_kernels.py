@@ -22,8 +22,8 @@ Layout (all C-contiguous float64 unless noted):
 Every random draw comes from the ``numpy.random.Generator`` passed in (numba shares its bit generator with
 the Python object), in a fixed, documented order, so the plain NumPy reference ``tests/naive.py`` fed the
 same Generator reproduces the kernels draw for draw. Prediction uses a counter-based stream per test point
-(splitmix64 seeded by a hash of the point and a fitted seed), so a prediction does not depend on which other
-points are in the batch.
+(splitmix64 seeded by a hash of the point and a fitted seed; ziggurat normals), so a prediction does not depend
+on which other points are in the batch.
 """
 
 from typing import NamedTuple
@@ -39,7 +39,11 @@ _VEC = {"reassoc", "contract"}
 W_UPDATES = {"mh": 0, "ess": 1, "paper-as-printed": 2}
 
 # Test points whose code sweeps are interleaved atom by atom in prediction.
-_PRED_BLOCK = 4
+_PRED_BLOCK = 8
+
+# Above this logit, 1 + exp(-logit) rounds to 1 in float64, so "u < sigmoid(logit)" holds for every u in [0, 1):
+# prediction then skips the exp and the uniform (the reference in tests/naive.py does the same).
+_LOGIT_SURE = 37.0
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -631,18 +635,60 @@ def _uniform(state):
     return state, np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
+# Ziggurat tables for standard normals (Marsaglia & Tsang, "The Ziggurat Method for Generating Random
+# Variables", J. Stat. Softw. 5(8), 2000): 256 layers of equal area ZIG_V under f(x) = exp(-x^2 / 2); layer 0
+# is the rectangle [0, ZIG_R] x [0, f(ZIG_R)] plus the tail beyond ZIG_R, with pseudo-width V / f(R).
+ZIG_R = 3.6541528853610088
+ZIG_V = 4.92867323399e-3
+
+
+def ziggurat_tables(n=256, r=ZIG_R, v=ZIG_V):
+    """Layer edges x[0..n] (x[0] = v / f(r), x[1] = r, decreasing to x[n] = 0) and f(x) at them."""
+    x = np.empty(n + 1)
+    x[0] = v / np.exp(-0.5 * r * r)
+    x[1] = r
+    for i in range(1, n - 1):
+        x[i + 1] = np.sqrt(-2.0 * np.log(v / x[i] + np.exp(-0.5 * x[i] * x[i])))
+    x[n] = 0.0
+    return x, np.exp(-0.5 * x * x)
+
+
+_ZIG_X, _ZIG_F = ziggurat_tables()
+
+
 @njit(cache=True)
-def _normal_pair(state):
-    """Two independent standard normals by Marsaglia's polar method (Marsaglia & Bray 1964)."""
+def _normal(state):
+    """A standard normal by the ziggurat: one 64-bit output gives the layer (bits 0-7), the sign (bit 8) and
+    the abscissa (bits 11-63); about 99% of draws are accepted at once, without a transcendental function."""
     while True:
-        state, u1 = _uniform(state)
-        state, u2 = _uniform(state)
-        v1 = 2.0 * u1 - 1.0
-        v2 = 2.0 * u2 - 1.0
-        q = v1 * v1 + v2 * v2
-        if 0.0 < q < 1.0:
-            f = np.sqrt(-2.0 * np.log(q) / q)
-            return state, v1 * f, v2 * f
+        state, z = _splitmix(state)
+        i = np.int64(z & np.uint64(255))
+        neg = (z >> np.uint64(8)) & np.uint64(1)
+        x = np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0) * _ZIG_X[i]
+        if x < _ZIG_X[i + 1]:
+            return state, -x if neg else x
+        if i == 0:  # the tail beyond r (Marsaglia 1964): x = r + e1 / r, accepted if 2 e2 > (e1 / r)^2
+            while True:
+                state, u1 = _uniform(state)
+                state, u2 = _uniform(state)
+                xt = -np.log1p(-u1) / ZIG_R
+                if -2.0 * np.log1p(-u2) > xt * xt:
+                    break
+            x = ZIG_R + xt
+            return state, -x if neg else x
+        state, u = _uniform(state)  # the wedge of layer i: accept if y ~ U[f(x_i), f(x_i+1)] is under f(x)
+        if _ZIG_F[i] + u * (_ZIG_F[i + 1] - _ZIG_F[i]) < np.exp(-0.5 * x * x):
+            return state, -x if neg else x
+
+
+@njit(cache=True)
+def stream_normals(seed, n):
+    """``n`` consecutive normals of the prediction stream seeded by ``seed`` (for tests)."""
+    out = np.empty(n)
+    state = np.uint64(seed)
+    for q in range(n):
+        state, out[q] = _normal(state)
+    return out
 
 
 @njit(cache=True)
@@ -659,48 +705,47 @@ def point_seeds(Xbits, seed):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_VEC)
 def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll):
     """Posterior predictive draws of y for every test point and retained sample.
 
     For test point t and sample l: ``w_t = mean_{i in J_t} W^l[i, :]`` (J_t = its neighbours, ``nbr[t]``);
     ``n_sweeps`` sweeps of the (b, s) block update restricted to the feature rows, from zero codes;
     ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
-    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]``
-    (uniforms; normals by the polar method, pairs used in turn), so a point's prediction does not depend on
-    the batch. Test points are processed in interleaved blocks of ``_PRED_BLOCK``; samples are the outer loop.
+    likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]`` (per atom
+    one uniform unless the logit exceeds ``_LOGIT_SURE``, where P(on) is 1 in float64; then one ziggurat
+    normal if the atom is on), so a point's prediction does not depend on the
+    batch. Samples are the outer loop (one sample's dictionaries stay in cache for all test points); blocks
+    of ``_PRED_BLOCK`` test points are interleaved atom by atom, and the residual update of atom k is fused
+    with the projection on atom k + 1 (one pass over the residual per atom).
     Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
     """
     T, Mx = Xt.shape
     L, K, _ = Dx.shape
+    My = out_y.shape[2]
     nj = nbr.shape[1]
-    tau = np.empty((L, K))
-    half_log = np.empty((L, K))
-    sd_on = np.empty((L, K))
-    nx = np.empty((L, K))
-    for l in range(L):
-        for k in range(K):
-            nx[l, k] = _dot(Dx[l, k], Dx[l, k])
-            tau[l, k] = gs[l] + gxy[l] * nx[l, k]
-            half_log[l, k] = 0.5 * np.log(gs[l] / tau[l, k])
-            sd_on[l, k] = 1.0 / np.sqrt(tau[l, k])
     P = _PRED_BLOCK
     r = np.empty((P, Mx))  # residuals of a block of test points
     alpha = np.empty((P, K))
     wt = np.empty((P, K))
     pn = np.empty(P)
-    gnext = np.empty((L, K))
-    for l in range(L):
-        gnext[l] = _adjacent_gram(Dx[l], 0, Mx)
+    nx = np.empty(K)
+    gain = np.empty(K)  # g_xy / tau_k
+    half_tau = np.empty(K)
+    half_log = np.empty(K)
+    sd_on = np.empty(K)
     streams = seeds.copy()  # one stream per test point, advanced sample after sample
-    spare = np.zeros(T)  # the second normal of the last polar pair, per test point
-    has_spare = np.zeros(T, dtype=np.bool_)
-    # samples outer, test points inner: one sample's dictionaries stay in cache for all test points;
-    # blocks of _PRED_BLOCK test points are interleaved atom by atom (independent chains overlap in the CPU)
     for l in range(L):
         g_s = gs[l]
         g_xy = gxy[l]
         Dxl = Dx[l]
+        for k in range(K):
+            nx[k] = _dot_rows(Dxl, k, Dxl, k, Mx)
+            tau = g_s + g_xy * nx[k]
+            gain[k] = g_xy / tau
+            half_tau[k] = 0.5 * tau
+            half_log[k] = 0.5 * np.log(g_s / tau)
+            sd_on[k] = 1.0 / np.sqrt(tau)
         for t0 in range(0, T, P):
             nb = min(P, T - t0)
             for p in range(nb):
@@ -721,38 +766,42 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
                 for k in range(K):
                     for p in range(nb):
                         t = t0 + p
-                        proj = pn[p]
-                        if k + 1 < K:
-                            pn[p] = _dot_rows(Dxl, k + 1, r, p, Mx)  # corrected below (see update_codes)
                         a_old = alpha[p, k]
-                        mu = g_xy * (proj + a_old * nx[l, k]) / tau[l, k]
-                        logit = wt[p, k] + half_log[l, k] + 0.5 * tau[l, k] * mu * mu
-                        st, u = _uniform(streams[t])
-                        if u * (1.0 + np.exp(-logit)) < 1.0:  # u < sigmoid(logit)
-                            if has_spare[t]:
-                                z = spare[t]
-                                has_spare[t] = False
-                            else:
-                                st, z, z2 = _normal_pair(st)
-                                spare[t] = z2
-                                has_spare[t] = True
-                            a_new = mu + z * sd_on[l, k]
+                        mu = gain[k] * (pn[p] + a_old * nx[k])
+                        logit = wt[p, k] + half_log[k] + half_tau[k] * mu * mu
+                        st = streams[t]
+                        on = logit > _LOGIT_SURE  # then P(on) rounds to 1: no uniform is drawn
+                        if not on:
+                            st, u = _uniform(st)
+                            on = u * (1.0 + np.exp(-logit)) < 1.0  # u < sigmoid(logit)
+                        if on:
+                            st, z = _normal(st)
+                            a_new = mu + z * sd_on[k]
                         else:
                             a_new = 0.0  # s of an inactive atom does not enter the prediction
                         streams[t] = st
-                        delta = a_old - a_new
-                        if delta != 0.0:
-                            _axpy_rows(delta, Dxl, k, r, p, Mx)
-                            pn[p] += delta * gnext[l, k]
                         alpha[p, k] = a_new
+                        delta = a_old - a_new
+                        if k + 1 < K:
+                            if delta != 0.0:  # r += delta d_k and the projection on d_{k+1}, in one pass
+                                acc = 0.0
+                                for m in range(Mx):
+                                    v = r[p, m] + delta * Dxl[k, m]
+                                    r[p, m] = v
+                                    acc += Dxl[k + 1, m] * v
+                                pn[p] = acc
+                            else:
+                                pn[p] = _dot_rows(Dxl, k + 1, r, p, Mx)
+                        elif delta != 0.0:
+                            _axpy_rows(delta, Dxl, k, r, p, Mx)
             for p in range(nb):
                 t = t0 + p
-                for m in range(out_y.shape[2]):
+                for m in range(My):
                     out_y[t, l, m] = 0.0
                 for k in range(K):
                     a = alpha[p, k]
                     if a != 0.0:
-                        for m in range(out_y.shape[2]):
+                        for m in range(My):
                             out_y[t, l, m] += a * Dy[l, k, m]
                 rr = _dot_rows(r, p, r, p, Mx)
                 out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
