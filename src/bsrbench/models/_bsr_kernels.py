@@ -308,66 +308,104 @@ def _signs_t(B):
     return Zt
 
 
-@njit(cache=True)
-def _sig_pair(x):
-    """(sigmoid(x), sigmoid(-x)) from one exp."""
-    e = np.exp(-abs(x))
-    inv = 1.0 / (1.0 + e)
-    if x >= 0.0:
-        return inv, e * inv
-    return e * inv, inv
-
-
-# Sums of log sigmoids are taken as logs of running products, flushed every _FLUSH factors; factors outside
-# [_TINY, 1/_TINY] are added as exact logs, so a product stays within 1e-240..1e240 (no under/overflow).
+# Log-ratio sums in the MH step are taken as logs of running products, flushed every _FLUSH factors; factors
+# outside [_TINY, 1/_TINY] are added as exact logs, so a product stays within 1e-240..1e240.
 _FLUSH = 8
 _TINY = 1e-30
 
-
-@njit(cache=True)
-def _sum_log_sigmoid_above(z, w, floor):
-    """sum_i log sigmoid(z_i w_i) for contiguous 1-D z, w (one exp per term, one log per _FLUSH terms).
-
-    Every term is <= 0, so the partial sums only decrease: once one is <= ``floor`` (checked at each flush of
-    the running product) that partial sum is returned, which is <= ``floor`` as well."""
-    acc = 0.0
-    prod = 1.0
-    cnt = 0
-    for i in range(w.shape[0]):
-        x = z[i] * w[i]
-        sg, _ = _sig_pair(x)
-        if sg > _TINY:
-            prod *= sg
-            cnt += 1
-            if cnt == _FLUSH:
-                acc += np.log(prod)
-                prod = 1.0
-                cnt = 0
-                if acc <= floor:
-                    return acc
-        else:
-            acc += _log_sigmoid(x)
-            if acc <= floor:
-                return acc
-    return acc + np.log(prod)
+# exp(-a) without a libm call, so that loops over it vectorize (with 'reassoc' for the reductions): a is clamped
+# to [0, 708] (exp(-708) is still a normal number), a = k ln2 + r with |r| <= ln2 / 2 (ln2 split in two parts,
+# as in fdlibm), exp(-r) by its Taylor polynomial of degree 13 (truncation < 4e-18 relative) and 2^-k from the
+# ten bits of k (no table gather).
+_LN2_HI = 6.93147180369123816490e-01
+_LN2_LO = 1.90821492927058770002e-10
+_LOG2E = 1.4426950408889634
+_EXP_CLAMP = 708.0
+# 1 / j! for j = 0..13
+_C0, _C1, _C2, _C3 = 1.0, 1.0, 0.5, 1.0 / 6.0
+_C4, _C5, _C6, _C7 = 1.0 / 24.0, 1.0 / 120.0, 1.0 / 720.0, 1.0 / 5040.0
+_C8, _C9, _C10 = 1.0 / 40320.0, 1.0 / 362880.0, 1.0 / 3628800.0
+_C11, _C12, _C13 = 1.0 / 39916800.0, 1.0 / 479001600.0, 1.0 / 6227020800.0
+# terms per logged product in _sum_log_sigmoid: factors are in [1, 2], so a product stays below 2^512
+_LOG_CHUNK = 512
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always", fastmath=_VEC)
+def _exp_neg(a):
+    """exp(-a) for a >= 0 (a > _EXP_CLAMP gives exp(-_EXP_CLAMP)); relative error about 1e-16."""
+    a = min(a, _EXP_CLAMP)
+    k = np.int64(a * _LOG2E + 0.5)
+    q = (k * _LN2_HI - a) + k * _LN2_LO  # -r
+    p = _C13
+    p = p * q + _C12
+    p = p * q + _C11
+    p = p * q + _C10
+    p = p * q + _C9
+    p = p * q + _C8
+    p = p * q + _C7
+    p = p * q + _C6
+    p = p * q + _C5
+    p = p * q + _C4
+    p = p * q + _C3
+    p = p * q + _C2
+    p = p * q + _C1
+    p = p * q + _C0
+    scale = 1.0  # 2^-k for 0 <= k <= 1021, a product of 2^-(2^j) over the set bits j of k
+    if k & 1:
+        scale *= 0.5
+    if k & 2:
+        scale *= 0.25
+    if k & 4:
+        scale *= 0.0625
+    if k & 8:
+        scale *= 0.00390625
+    if k & 16:
+        scale *= 1.52587890625e-05
+    if k & 32:
+        scale *= 2.3283064365386963e-10
+    if k & 64:
+        scale *= 5.421010862427522e-20
+    if k & 128:
+        scale *= 2.938735877055719e-39
+    if k & 256:
+        scale *= 8.636168555094445e-78
+    if k & 512:
+        scale *= 7.458340731200207e-155
+    return p * scale
+
+
+@njit(cache=True, inline="always", fastmath=_VEC)
+def _sig_pair(x):
+    """(sigmoid(x), sigmoid(-x)) from one exp, branch-free (vectorizes)."""
+    e = _exp_neg(abs(x))
+    inv = 1.0 / (1.0 + e)
+    ei = e * inv
+    pos = x >= 0.0
+    return (inv if pos else ei), (ei if pos else inv)
+
+
+@njit(cache=True, fastmath=_VEC)
 def _sum_log_sigmoid(z, w):
-    """sum_i log sigmoid(z_i w_i) (see _sum_log_sigmoid_above)."""
-    return _sum_log_sigmoid_above(z, w, -np.inf)
+    """sum_i log sigmoid(z_i w_i) for contiguous 1-D z, w, as ``sum_i min(x_i, 0) - log prod_i (1 + exp(-|x_i|))``
+    with x_i = z_i w_i: no libm call per term, so the loop vectorizes; one log per _LOG_CHUNK terms."""
+    n = w.shape[0]
+    lin = 0.0
+    logs = 0.0
+    for i0 in range(0, n, _LOG_CHUNK):
+        prod = 1.0
+        for i in range(i0, min(i0 + _LOG_CHUNK, n)):
+            x = z[i] * w[i]
+            lin += min(x, 0.0)
+            prod *= 1.0 + _exp_neg(abs(x))
+        logs += np.log(prod)
+    return lin - logs
 
 
-@njit(cache=True)
-def _log_sigmoid_sum_exceeds(z, w, log_y):
-    """Whether sum_i log sigmoid(z_i w_i) > log_y, stopping as soon as a partial sum is <= log_y."""
-    return _sum_log_sigmoid_above(z, w, log_y) > log_y
-
-
-@njit(cache=True)
+@njit(cache=True, fastmath=_VEC, error_model="numpy")
 def _bound_terms(Zt, Wt, Lam, Sig):
     """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w): the tight bound's Lambda) and
-    Sig = sigmoid(z w), elementwise over (K, N) arrays."""
+    Sig = sigmoid(z w), elementwise over (K, N) arrays. NumPy's error model: numba's default checks every
+    float division for zero (1 + e > 0 here), and that branch keeps the loop from vectorizing."""
     K, N = Wt.shape
     for k in range(K):
         for i in range(N):
@@ -459,7 +497,7 @@ def update_w_ess(W, B, Lw, rng):
             sn = np.sin(theta)
             for i in range(N):
                 wp[i] = wk[i] * c + nk[i] * sn
-            if _log_sigmoid_sum_exceeds(zk, wp, log_y):
+            if _sum_log_sigmoid(zk, wp) > log_y:
                 break
             if theta < 0.0:
                 lo = theta
