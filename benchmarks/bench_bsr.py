@@ -1,7 +1,8 @@
 """Speed of the BayesianSR Gibbs sampler and its prediction, on one core.
 
 Times (median over repeats; wall clock and process CPU time, since the machine may be shared):
-  1. one full sweep at N=200, K=256, Mx=100, My=57 for each logit update, with a per-update breakdown;
+  1. one full sweep at N=200, K=256, Mx=100, My=57 for each logit update and atom update (block, single),
+     with a per-update breakdown;
   2. the plain NumPy reference (tests/naive.py) at the same size, in the same run: the speed-up ratio;
   3. a table over N in {30, 60, 100, 200} x K in {64, 128, 196, 256};
   4. prediction of 400 test points with 50 posterior samples x 10 code sweeps at K=256.
@@ -97,15 +98,17 @@ def main(argv=None):
     N, K = 200, 256
     state, data, hyper, rng, _ = problem(N, K)
     print(f"\n1. sweep at N={N}, K={K}, Mx={MX}, My={MY} (median of {reps}); codes on: {state.B.mean():.2f}")
-    for wu in ("ess", "mh"):
-        w, c = timed(lambda: kern.gibbs_sweep(state, data, hyper, rng, wu), reps)
-        rows.append(dict(section="sweep", N=N, K=K, w_update=wu, wall_ms=1e3 * w, cpu_ms=1e3 * c))
-        print(f"   sweep {wu:4s}: {1e3 * w:7.2f} ms wall, {1e3 * c:7.2f} ms CPU")
+    for wu, au in (("ess", "block"), ("mh", "block"), ("ess", "single"), ("mh", "single")):
+        w, c = timed(lambda: kern.gibbs_sweep(state, data, hyper, rng, wu, au), reps)
+        rows.append(dict(section="sweep", N=N, K=K, w_update=wu, atom_update=au, wall_ms=1e3 * w, cpu_ms=1e3 * c))
+        print(f"   sweep {wu:4s} {au:6s}: {1e3 * w:7.2f} ms wall, {1e3 * c:7.2f} ms CPU")
     p = state.prec
     parts = {
         "codes": lambda: kern.update_codes(state.R, state.D, state.norms, state.B, state.S, state.W, p[0], p[1], rng),
         "atoms": lambda: kern.update_atoms(data.V, state.R, state.D, state.norms, state.B, state.S, p[1], p[2], p[3],
                                            MX, rng),
+        "atoms_single": lambda: kern.update_atoms_single(state.R, state.D, state.norms, state.B, state.S, p[1], p[2],
+                                                         p[3], MX, rng),
         "precisions": lambda: kern.update_precisions(state.R, state.D, state.S, p.copy(), MX, 1e-6, 1e-6, rng),
         "w_mh": lambda: kern.update_w_mh(state.W.copy(), state.B, data.Sigma, data.Lw, rng, False),
         "w_ess": lambda: kern.update_w_ess(state.W.copy(), state.B, data.Lw, rng),
@@ -119,7 +122,7 @@ def main(argv=None):
     n_naive = 2 if args.quick else 3
     ns = copy_state(state)
     w_ref, c_ref = timed(lambda: naive.gibbs_sweep(ns, data, hyper, np.random.default_rng(1), "mh"), n_naive)
-    w_fast = [r for r in rows if r["section"] == "sweep" and r["w_update"] == "mh"][0]
+    w_fast = [r for r in rows if r["section"] == "sweep" and r["w_update"] == "mh" and r["atom_update"] == "block"][0]
     rows.append(dict(section="naive", N=N, K=K, w_update="mh", wall_ms=1e3 * w_ref, cpu_ms=1e3 * c_ref))
     print(f"\n2. NumPy reference sweep (mh): {w_ref:.2f} s wall, {c_ref:.2f} s CPU -> speed-up "
           f"{1e3 * w_ref / w_fast['wall_ms']:.0f}x wall, {1e3 * c_ref / w_fast['cpu_ms']:.0f}x CPU")

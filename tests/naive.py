@@ -60,6 +60,22 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
     R[:, :] = V - A.T @ D
 
 
+def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
+    """One atom at a time: d_k | rest with precision g + g_xy sum_i alpha_ki^2 and mean
+    g_xy sum_i alpha_ki r_i^(-k) / precision (MODEL.md), then the residual without and with the new atom."""
+    K, M = D.shape
+    E = rng.standard_normal((K, M))
+    A = B * S
+    for k in range(K):
+        a = A[:, k]
+        r_minus = R + np.outer(a, D[k])
+        for lo, hi, g in ((0, Mx, g_x), (Mx, M, g_y)):
+            p = g + g_xy * (a @ a)
+            D[k, lo:hi] = g_xy * (a @ r_minus[:, lo:hi]) / p + E[k, lo:hi] / np.sqrt(p)
+        R[:, :] = r_minus - np.outer(a, D[k])
+    norms[:] = np.einsum("km,km->k", D, D)
+
+
 def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
     """Gamma(shape, rate) conditionals of g_s, g_xy, g_x, g_y, in that order."""
     N, K = S.shape
@@ -131,12 +147,15 @@ def update_w_ess(W, B, Lw, rng):
     return K
 
 
-def gibbs_sweep(state, data, hyper, rng, w_update="mh"):
+def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
     """codes, atoms (+ residual), precisions, logits; returns [log-lik, active atoms, acceptance]."""
     D, norms, B, S, W, R, prec = state
     V, Mx, Sigma, Lw = data
     update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
-    update_atoms(V, R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
+    if atom_update == "single":
+        update_atoms_single(R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
+    else:
+        update_atoms(V, R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
     update_precisions(R, D, S, prec, Mx, hyper.a0, hyper.b0, rng)
     if w_update == "ess":
         acc = update_w_ess(W, B, Lw, rng)

@@ -61,9 +61,11 @@ def _oracle_predict(Xtr, Xte, truth, j, n_copies=30, n_sweeps=10):
     return out_y.mean(axis=1)
 
 
-def test_prediction_on_model_data_approaches_true_dictionaries():
+@pytest.mark.parametrize("atom_update", ["block", "single"])
+def test_prediction_on_model_data_approaches_true_dictionaries(atom_update):
     Xtr, Ytr, Xte, Yte, truth = _simulate(0)
-    model = BayesianSR(n_atoms=8, n_iter=400, n_burn_in=200, thin=4, standardize=False, random_state=1).fit(Xtr, Ytr)
+    model = BayesianSR(n_atoms=8, n_iter=400, n_burn_in=200, thin=4, standardize=False, atom_update=atom_update,
+                       random_state=1).fit(Xtr, Ytr)
     y, sd = model.predict(Xte, return_std=True)
     rmse = np.sqrt(np.mean((y - Yte) ** 2))
     rmse_oracle = np.sqrt(np.mean((_oracle_predict(Xtr, Xte, truth, model.n_neighbors) - Yte) ** 2))
@@ -178,6 +180,7 @@ def test_fewer_rows_than_neighbours():
         ({"n_atoms": 2.5}, "n_atoms must be an integer; got 2.5"),
         ({"thin": 0}, "thin must be >= 1; got 0"),
         ({"w_update": "gibbs"}, "w_update must be one of .*got 'gibbs'"),
+        ({"atom_update": "joint"}, "atom_update must be one of .*got 'joint'"),
         ({"prediction_weighting": "max"}, "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'"),
         ({"a0": -1.0}, "a0 must be a positive finite number; got -1.0"),
         ({"standardize": "yes"}, "standardize must be True or False; got 'yes'"),
@@ -197,12 +200,12 @@ def test_non_finite_state_names_the_sweep(monkeypatch):
     # force a huge atom just before sweep 5: the real sweep then produces a non-finite state
     real_sweep, calls = kern.gibbs_sweep, []
 
-    def sweep_with_blowup(state, data, hyper, rng, w_update):
+    def sweep_with_blowup(state, data, hyper, rng, *updates):
         if len(calls) == 5:
             state.D[0, :] = 1e300
             state.norms[0] = np.inf
         calls.append(1)
-        return real_sweep(state, data, hyper, rng, w_update)
+        return real_sweep(state, data, hyper, rng, *updates)
 
     monkeypatch.setattr(kern, "gibbs_sweep", sweep_with_blowup)
     X, Y = _toy()

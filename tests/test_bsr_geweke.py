@@ -54,7 +54,7 @@ def _batch_se(x, n_batches=50):
     return means.std(axis=0, ddof=1) / np.sqrt(n_batches)
 
 
-def geweke_z(w_update, n_iter, seed=0):
+def geweke_z(w_update, n_iter, seed=0, atom_update="block"):
     """z-scores (successive minus marginal, per moment) and their names."""
     rng = np.random.default_rng(seed)
     Sigma, eta = kern.logit_prior_cov(rng.standard_normal((N, 2)))
@@ -68,7 +68,7 @@ def geweke_z(w_update, n_iter, seed=0):
     rec = {name: np.empty((n_iter,) + arr.shape) for name, arr in
            (("prec", state.prec), ("D", state.D), ("B", state.B), ("S", state.S), ("W", state.W), ("V", V))}
     for t in range(n_iter):
-        kern.gibbs_sweep(state, data, hyper, rng, w_update)
+        kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update)
         kern.redraw_data(V, state.R, state.D, state.B, state.S, state.prec[1], rng)
         rec["prec"][t], rec["D"][t], rec["B"][t] = state.prec, state.D, state.B
         rec["S"][t], rec["W"][t], rec["V"][t] = state.S, state.W, V
@@ -92,6 +92,12 @@ def test_geweke_exact_updates(w_update):
     assert max(abs(v) for v in z.values()) < 4.0, _report(z)
 
 
+def test_geweke_single_site_atoms():
+    """One-atom-at-a-time dictionary updates (with elliptical slice sampling of the logits)."""
+    z = geweke_z("ess", n_iter=20000, seed=3, atom_update="single")
+    assert max(abs(v) for v in z.values()) < 4.0, _report(z)
+
+
 def test_geweke_paper_as_printed_fails():
     """The paper's printed MH ratio targets the wrong distribution: E[w^2] is visibly off."""
     z = geweke_z("paper-as-printed", n_iter=20000, seed=1)
@@ -102,6 +108,12 @@ def test_geweke_paper_as_printed_fails():
 @pytest.mark.parametrize("w_update", ["mh", "ess"])
 def test_geweke_exact_updates_long(w_update):
     z = geweke_z(w_update, n_iter=300000, seed=2)
+    assert max(abs(v) for v in z.values()) < 4.0, _report(z)
+
+
+@pytest.mark.slow
+def test_geweke_single_site_atoms_long():
+    z = geweke_z("ess", n_iter=300000, seed=4, atom_update="single")
     assert max(abs(v) for v in z.values()) < 4.0, _report(z)
 
 

@@ -56,6 +56,20 @@ def test_atoms_match_naive(My):
     _assert_states_close(s1, s2)
 
 
+@pytest.mark.parametrize("My", [3, 0])
+def test_single_site_atoms_match_naive(My):
+    s1, data, _ = _problem(4, My=My)
+    s2 = _copy(s1)
+    p = s1.prec
+    kern.update_atoms_single(s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6))
+    naive.update_atoms_single(s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
+                              np.random.default_rng(6))
+    _assert_states_close(s1, s2)
+    assert not np.allclose(s1.D, _problem(4, My=My)[0].D)
+    # the in-place residual equals a fresh one
+    np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
+
+
 def test_atoms_blocked_solves_large_k():
     """K larger than the block size of the triangular solves."""
     s1, data, _ = _problem(4, N=30, K=101, Mx=6, My=5)
@@ -96,14 +110,17 @@ def test_w_ess_matches_naive():
     assert not np.allclose(W1, s.W)
 
 
-@pytest.mark.parametrize("w_update", ["mh", "ess", "paper-as-printed"])
-def test_sweeps_match_naive(w_update):
+@pytest.mark.parametrize(
+    "w_update, atom_update",
+    [("mh", "block"), ("ess", "block"), ("paper-as-printed", "block"), ("ess", "single"), ("mh", "single")],
+)
+def test_sweeps_match_naive(w_update, atom_update):
     s1, data, h = _problem(8)
     s2 = _copy(s1)
     r1, r2 = np.random.default_rng(9), np.random.default_rng(9)
     for _ in range(3):
-        _, st1 = kern.gibbs_sweep(s1, data, h, r1, w_update)
-        st2 = naive.gibbs_sweep(s2, data, h, r2, w_update)
+        _, st1 = kern.gibbs_sweep(s1, data, h, r1, w_update, atom_update)
+        st2 = naive.gibbs_sweep(s2, data, h, r2, w_update, atom_update)
         np.testing.assert_allclose(st1, st2, rtol=1e-9)
         V1, V2 = data.V.copy(), data.V.copy()
         kern.redraw_data(V1, s1.R, s1.D, s1.B, s1.S, s1.prec[1], r1)
@@ -239,8 +256,10 @@ def test_g_xy_against_grid():
     assert stats.kstest(draws, _grid_cdf(grid, logd)).pvalue > 1e-3
 
 
-def test_atom_rows_against_grid():
-    """Two atoms, one feature row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square)."""
+@pytest.mark.parametrize("atom_update", ["block", "single"])
+def test_atom_rows_against_grid(atom_update):
+    """Two atoms, one feature row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square).
+    The block update draws it exactly; one-at-a-time updates are a Gibbs chain on it (thinned by 5)."""
     rng = np.random.default_rng(25)
     N, K, Mx = 6, 2, 1
     B = np.ones((N, K), dtype=np.int8)
@@ -252,7 +271,11 @@ def test_atom_rows_against_grid():
     D = np.zeros((K, Mx))
     R, norms = V.copy(), np.zeros(K)
     for t in range(n_rep):
-        kern.update_atoms(V, R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+        if atom_update == "block":
+            kern.update_atoms(V, R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+        else:
+            for _ in range(5):
+                kern.update_atoms_single(R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
         draws[t] = D[:, 0]
     A = B * S
     lim = 1.2 * np.abs(draws).max()
@@ -331,3 +354,5 @@ def test_gibbs_sweep_rejects_unknown_update():
     s, data, h = _problem(0)
     with pytest.raises(ValueError, match="w_update must be one of .* got 'gibbs'"):
         kern.gibbs_sweep(s, data, h, np.random.default_rng(0), "gibbs")
+    with pytest.raises(ValueError, match="atom_update must be one of .* got 'joint'"):
+        kern.gibbs_sweep(s, data, h, np.random.default_rng(0), "ess", "joint")
