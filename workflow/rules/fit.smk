@@ -6,7 +6,7 @@ rule cv:
         features="results/features/{source}/{activity}.npz",
         code=estimator_sources,
     output:
-        "results/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
+        json="results/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
     log:
         "logs/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
     benchmark:
@@ -20,6 +20,7 @@ rule cv:
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
+        job_server=config["job_server"],
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
@@ -50,6 +51,7 @@ rule fit:
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
+        job_server=config["job_server"],
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

@@ -1,0 +1,387 @@
+"""A local fork server for the study's short jobs: one warm Python process, one fork per job.
+
+Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a
+fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and
+loading numba's cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The
+rule scripts therefore hand their job to a server that has done those imports once and forks a child per job
+(the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through a
+Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout
+and stderr, and results are identical.
+
+Lifecycle and safety:
+- The first job starts the server (``python -m bsrbench.jobserver``) in its own session; a lock file keeps
+  concurrent jobs from starting two. The server exits after ``IDLE_SECONDS`` without jobs.
+- Every request carries a fingerprint of the package's source files (paths, sizes, mtimes) and of the
+  interpreter. A server started from other code answers "stale" and exits, and the job starts a fresh one,
+  so an edited model never runs with old code.
+- Each job gets a supervisor fork that forks the worker and watches the client's connection: if the client
+  dies (Snakemake interrupted), the worker is killed. Outputs are written atomically, so nothing half-written
+  is left.
+- Threads: the child limits numba and BLAS to the job's ``threads``.
+- If the server cannot be reached or started, or ``use_server`` is false (cluster executors, where jobs run
+  on other nodes), the job runs in the calling process.
+"""
+
+import errno
+import fcntl
+import hashlib
+import importlib
+import os
+import pickle
+import select
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+
+#: The server exits after this long without a job.
+IDLE_SECONDS = 120.0
+#: How long a job waits for a server it started to listen.
+START_TIMEOUT = 60.0
+#: Modules the server imports before forking (what the jobs would otherwise import each time).
+PRELOAD = (
+    "numpy",
+    "scipy.stats",
+    "sklearn.base",
+    "bsrbench.study",
+    "bsrbench.tuning",
+    "bsrbench.models.bsr",
+    "bsrbench.models.reference",
+    "bsrbench.models.rvm",
+    "bsrbench.models.tgp",
+    "bsrbench.models.sr",
+    "bsrbench.models.ddl",
+)
+_PKG = Path(__file__).resolve().parent
+
+
+# ------------------------------------------------------------------------------------------------- framing
+def _send(sock, obj):
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    sock.sendall(struct.pack("!Q", len(data)) + data)
+
+
+def _recv_exact(sock, n):
+    buf = bytearray()
+    while len(buf) < n:
+        chunk = sock.recv(n - len(buf))
+        if not chunk:
+            raise EOFError("connection closed")
+        buf += chunk
+    return bytes(buf)
+
+
+def _recv(sock):
+    (n,) = struct.unpack("!Q", _recv_exact(sock, 8))
+    return pickle.loads(_recv_exact(sock, n))
+
+
+# --------------------------------------------------------------------------------------------- identities
+def fingerprint():
+    """Hash of the interpreter and of every source file of the package (path, size, mtime)."""
+    h = hashlib.sha256(f"{sys.executable}|{sys.version}".encode())
+    for path in sorted(_PKG.rglob("*.py")):
+        st = path.stat()
+        h.update(f"{path}|{st.st_size}|{st.st_mtime_ns}".encode())
+    return h.hexdigest()
+
+
+def socket_path():
+    """A per-user, per-environment socket path (short enough for AF_UNIX); ``BSRBENCH_JOBSERVER_SOCKET``
+    overrides it (tests use their own server)."""
+    if os.environ.get("BSRBENCH_JOBSERVER_SOCKET"):
+        return Path(os.environ["BSRBENCH_JOBSERVER_SOCKET"])
+    key = hashlib.sha256(f"{sys.prefix}|{_PKG}".encode()).hexdigest()[:16]
+    base = Path(os.environ.get("XDG_RUNTIME_DIR") or "/tmp")
+    return base / f"bsrbench-jobserver-{os.getuid()}-{key}.sock"
+
+
+# ------------------------------------------------------------------------------------------------- running
+def _plain(value):
+    if isinstance(value, (str, bytes, int, float, bool, type(None), dict)):
+        return value
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def job_from_snakemake(sm):
+    """The job dict of a Snakemake script object: named input/output/params/wildcards, log, threads."""
+
+    def named(nl):
+        return {name: _plain(val) for name, val in nl.items()}
+
+    return {
+        "input": named(sm.input),
+        "output": named(sm.output),
+        "params": named(sm.params),
+        "wildcards": named(sm.wildcards),
+        "log": [str(x) for x in sm.log],
+        "threads": int(sm.threads),
+    }
+
+
+def _resolve(target):
+    module, name = target.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _limit_threads(threads):
+    """Limit numba and BLAS/OpenMP to ``threads`` in an already-initialized process."""
+    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = str(threads)  # for any subprocess of the job
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    except ImportError:
+        pass
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(int(threads))
+    except ImportError:
+        pass
+
+
+def run_local(target, job):
+    """Run ``target`` (``"module:function"``) on ``job`` in this process, log to the job's log file."""
+    threads = str(job.get("threads", 1))
+    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = threads  # before numba and BLAS are imported
+    log = job.get("log") or []
+    if log:
+        sys.stderr = open(log[0], "w")
+    _resolve(target)(job)
+
+
+def run(target, job, *, use_server=True):
+    """Run a job: in a fork of the warm server if possible, else in this process."""
+    if use_server:
+        try:
+            status, detail = _run_remote(target, job)
+        except (OSError, EOFError, TimeoutError) as exc:
+            print(f"bsrbench.jobserver: server not available ({exc}); running in-process", file=sys.stderr)
+        else:
+            if status == "ok":
+                return
+            log = (job.get("log") or ["(no log)"])[0]
+            raise SystemExit(f"job {target} failed in the job server; see {log}:\n{detail}")
+    run_local(target, job)
+
+
+def _connect(path):
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        sock.connect(str(path))
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
+def _start_server(path):
+    """Start a server unless another job is starting one; wait until it listens."""
+    lock = open(f"{path}.lock", "w")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            return _connect(path)
+        except OSError:
+            pass
+        env = dict(os.environ)
+        for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+            env[var] = "1"  # no BLAS thread pools in the process that forks; children may raise them
+        env["NUMBA_NUM_THREADS"] = str(os.cpu_count() or 1)
+        subprocess.Popen(
+            [sys.executable, "-m", "bsrbench.jobserver", str(path)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=open(f"{path}.log", "a"),
+            start_new_session=True,
+            env=env,
+        )
+        deadline = time.monotonic() + START_TIMEOUT
+        while time.monotonic() < deadline:
+            try:
+                return _connect(path)
+            except OSError:
+                time.sleep(0.05)
+        raise TimeoutError(f"job server at {path} did not start within {START_TIMEOUT:.0f} s (log: {path}.log)")
+    finally:
+        lock.close()
+
+
+def _run_remote(target, job):
+    path = socket_path()
+    fp = fingerprint()
+    for _ in range(2):
+        try:
+            sock = _connect(path)
+        except OSError:
+            sock = _start_server(path)
+        with sock:
+            _send(sock, {"target": target, "job": job, "fingerprint": fp, "cwd": os.getcwd()})
+            status, detail = _recv(sock)
+        if status != "stale":
+            return status, detail
+        # the server ran other code: it is shutting down; wait for its socket to go, then start a new one
+        deadline = time.monotonic() + 10
+        while path.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+    raise OSError(errno.EAGAIN, "job server stayed stale")
+
+
+def ping(job):
+    """A health-check job: write ``job["output"]["path"]`` (the worker's pid), optionally after sleeping
+    ``job["params"]["sleep"]`` seconds, or raise if ``job["params"]["fail"]``."""
+    params = job.get("params", {})
+    print(f"ping from pid {os.getpid()}", file=sys.stderr)
+    if params.get("pid_file"):
+        Path(params["pid_file"]).write_text(str(os.getpid()))
+    time.sleep(float(params.get("sleep", 0)))
+    if params.get("fail"):
+        raise ValueError(f"ping asked to fail: {params['fail']}")
+    Path(job["output"]["path"]).write_text(str(os.getpid()))
+
+
+# -------------------------------------------------------------------------------------------------- server
+def _worker(request, result_w):
+    """The forked worker: the job's directory, log and threads, then the job itself."""
+    status, detail = "ok", None
+    try:
+        os.chdir(request["cwd"])
+        job = request["job"]
+        log = job.get("log") or []
+        if log:
+            fd = os.open(log[0], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            os.dup2(fd, 1)
+            os.dup2(fd, 2)
+            os.close(fd)
+        sys.stdout = os.fdopen(1, "w", buffering=1, closefd=False)
+        sys.stderr = os.fdopen(2, "w", buffering=1, closefd=False)
+        _limit_threads(job.get("threads", 1))
+        _resolve(request["target"])(job)
+    except BaseException:  # noqa: BLE001 - everything goes back to the client
+        detail = traceback.format_exc()
+        status = "error"
+        print(detail, file=sys.stderr)
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except Exception:  # noqa: BLE001
+        pass
+    os.write(result_w, pickle.dumps((status, detail)))
+    os._exit(0)
+
+
+def _supervise(conn, request):
+    """Fork the worker; relay its result to the client, or kill it if the client goes away."""
+    result_r, result_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        conn.close()
+        os.close(result_r)
+        _worker(request, result_w)
+    os.close(result_w)
+    chunks = []
+    while True:
+        ready, _, _ = select.select([result_r, conn], [], [])
+        if result_r in ready:
+            data = os.read(result_r, 1 << 16)
+            if not data:
+                break
+            chunks.append(data)
+            continue
+        if conn in ready:  # the client should not send more: readable means it closed (job killed)
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    try:
+        result = pickle.loads(b"".join(chunks))
+    except Exception:  # noqa: BLE001 - the worker died without a result
+        result = ("error", f"worker exited with status {status} without a result")
+    try:
+        _send(conn, result)
+    except OSError:
+        pass
+    os._exit(0)
+
+
+def serve(path, idle=IDLE_SECONDS):
+    """Import the job modules, listen on ``path`` and fork a supervisor per request until idle."""
+    for name in PRELOAD:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
+    _warm_numba()
+    fp = fingerprint()
+    path = Path(path)
+    if path.exists():
+        path.unlink()
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    srv.bind(str(path))
+    srv.listen(64)
+    srv.settimeout(1.0)
+    children, last = set(), time.monotonic()
+    try:
+        while True:
+            for pid in list(children):
+                if os.waitpid(pid, os.WNOHANG)[0]:
+                    children.discard(pid)
+            if children:
+                last = time.monotonic()
+            elif time.monotonic() - last > idle:
+                break
+            try:
+                conn, _ = srv.accept()
+            except TimeoutError:
+                continue
+            last = time.monotonic()
+            conn.settimeout(None)
+            try:
+                request = _recv(conn)
+            except (EOFError, OSError, pickle.UnpicklingError):
+                conn.close()
+                continue
+            if request.get("fingerprint") != fp or fp != fingerprint():
+                _send(conn, ("stale", None))
+                conn.close()
+                break
+            pid = os.fork()
+            if pid == 0:
+                srv.close()
+                _supervise(conn, request)
+            conn.close()
+            children.add(pid)
+    finally:
+        srv.close()
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def _warm_numba():
+    """Load the BSR kernels from numba's cache once, so that forked jobs do not."""
+    try:
+        import numpy as np
+
+        from bsrbench.models.bsr import BayesianSR
+
+        rng = np.random.default_rng(0)
+        X, Y = rng.standard_normal((12, 3)), rng.standard_normal((12, 2))
+        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0).fit(X, Y).predict(X[:2])
+        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, w_update="mh", random_state=0).fit(X, Y)
+    except Exception:  # noqa: BLE001 - warming is an optimization only
+        traceback.print_exc()
+
+
+if __name__ == "__main__":
+    serve(sys.argv[1])

@@ -1,0 +1,121 @@
+"""The job server: jobs run in forks of a warm process, with the same results as in-process; errors, stale
+code and killed clients are handled."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from bsrbench import jobserver
+
+
+@pytest.fixture
+def server_socket(tmp_path, monkeypatch):
+    """A private server for this test (started on first use), shut down afterwards."""
+    path = tmp_path / "js.sock"
+    monkeypatch.setenv("BSRBENCH_JOBSERVER_SOCKET", str(path))
+    yield path
+    if path.exists():  # ask it to stop: a request with a foreign fingerprint makes it exit
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            s.connect(str(path))
+            jobserver._send(s, {"fingerprint": "stop", "target": "", "job": {}, "cwd": "/"})
+            jobserver._recv(s)
+
+
+def _ping(tmp_path, **params):
+    return {"input": {}, "output": {"path": str(tmp_path / "out.txt")}, "params": params, "wildcards": {},
+            "log": [str(tmp_path / "ping.log")], "threads": 1}
+
+
+def test_job_runs_in_a_fork_of_one_server(server_socket, tmp_path):
+    pids = []
+    for _ in range(2):
+        jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+        pids.append(int((tmp_path / "out.txt").read_text()))
+    assert server_socket.exists()
+    assert pids[0] != pids[1] and os.getpid() not in pids  # a fresh fork per job, not this process
+    assert "ping from pid" in (tmp_path / "ping.log").read_text()
+
+
+def test_error_reaches_the_client_and_the_log(server_socket, tmp_path):
+    with pytest.raises(SystemExit, match=r"(?s)failed in the job server; see .*ping\.log.*ping asked to fail: boom"):
+        jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path, fail="boom"))
+    assert "ValueError: ping asked to fail: boom" in (tmp_path / "ping.log").read_text()
+    assert not (tmp_path / "out.txt").exists()
+
+
+def test_stale_server_is_replaced(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.connect(str(server_socket))
+        jobserver._send(s, {"fingerprint": "other code", "target": "", "job": {}, "cwd": "/"})
+        assert jobserver._recv(s) == ("stale", None)
+    deadline = time.monotonic() + 10
+    while server_socket.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not server_socket.exists()  # the stale server exited
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # and a new one serves
+    assert (tmp_path / "out.txt").exists()
+
+
+def test_killed_client_kills_its_worker(server_socket, tmp_path):
+    pid_file = tmp_path / "worker.pid"
+    job = _ping(tmp_path, sleep=60, pid_file=str(pid_file))
+    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+    client = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ))
+    deadline = time.monotonic() + 60
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    worker = int(pid_file.read_text())
+    client.send_signal(signal.SIGKILL)
+    client.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            os.kill(worker, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail(f"worker {worker} still alive after its client was killed")
+    assert not (tmp_path / "out.txt").exists()
+
+
+def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
+    rng = np.random.default_rng(0)
+    features = tmp_path / "f.npz"
+    np.savez(features, X=rng.gamma(2.0, 1.0, (80, 6)), Y=rng.uniform(-90, 90, (80, 5)), heading_column=2)
+    rows = {}
+    for mode in ("server", "local"):
+        out = tmp_path / mode
+        out.mkdir()
+        job = {
+            "input": {"features": str(features), "cv": [], "code": []},
+            "output": {"row": str(out / "row.json"), "predictions": str(out / "pred.npz")},
+            "params": {"estimator": "bsrbench.models.bsr:BayesianSR",
+                       "fixed": {"n_atoms": 4, "n_iter": 30, "n_burn_in": 10, "thin": 2},
+                       "cv_mode": "none", "paper_activity": "", "pose_transform": "none", "min_test": 10,
+                       "gap": 5, "job_server": True},
+            "wildcards": {"protocol": "random", "source": "toy", "activity": "a", "method": "PM",
+                          "n_train": "30", "seed": "1"},
+            "log": [str(out / "job.log")],
+            "threads": 1,
+        }
+        if mode == "server":
+            jobserver.run("bsrbench.jobs:fit", job)
+        else:  # a fresh interpreter, as with job_server: false
+            code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobs:fit', {job!r}, use_server=False)"
+            subprocess.run([sys.executable, "-c", code], check=True, env=dict(os.environ))
+        rows[mode] = json.loads((out / "row.json").read_text())
+        with np.load(out / "pred.npz") as f:
+            rows[mode]["_pred"] = {k: f[k] for k in f.files}
+    a, b = rows["server"], rows["local"]
+    assert a["error"] == b["error"] and a["params"] == b["params"]
+    for k in a["_pred"]:
+        np.testing.assert_array_equal(a["_pred"][k], b["_pred"][k], err_msg=k)
