@@ -57,6 +57,8 @@ PRELOAD = (
     "bsrbench.models.ddl",
 )
 _PKG = Path(__file__).resolve().parent
+#: Environment variables that set the thread counts of numba and of the BLAS/OpenMP libraries.
+_THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 # ------------------------------------------------------------------------------------------------- framing
@@ -132,7 +134,7 @@ def _resolve(target):
 
 def _limit_threads(threads):
     """Limit numba and BLAS/OpenMP to ``threads`` in an already-initialized process."""
-    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    for var in _THREAD_VARS:
         os.environ[var] = str(threads)  # for any subprocess of the job
     try:
         import numba
@@ -151,7 +153,7 @@ def _limit_threads(threads):
 def run_local(target, job):
     """Run ``target`` (``"module:function"``) on ``job`` in this process, log to the job's log file."""
     threads = str(job.get("threads", 1))
-    for var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    for var in _THREAD_VARS:
         os.environ[var] = threads  # before numba and BLAS are imported
     log = job.get("log") or []
     if log:
@@ -350,7 +352,7 @@ def serve(path, idle=IDLE_SECONDS):
             except (EOFError, OSError, pickle.UnpicklingError):
                 conn.close()
                 continue
-            if request.get("fingerprint") != fp or fp != fingerprint():
+            if request.get("fingerprint") != fp:  # the client hashed the sources just now
                 _send(conn, ("stale", None))
                 conn.close()
                 break

@@ -26,6 +26,7 @@ same Generator reproduces the kernels draw for draw. Prediction uses a counter-b
 on which other points are in the batch.
 """
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -373,11 +374,10 @@ _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
 _LOG2E = 1.4426950408889634
 _EXP_CLAMP = 708.0
-# 1 / j! for j = 0..13
-_C0, _C1, _C2, _C3 = 1.0, 1.0, 0.5, 1.0 / 6.0
-_C4, _C5, _C6, _C7 = 1.0 / 24.0, 1.0 / 120.0, 1.0 / 720.0, 1.0 / 5040.0
-_C8, _C9, _C10 = 1.0 / 40320.0, 1.0 / 362880.0, 1.0 / 3628800.0
-_C11, _C12, _C13 = 1.0 / 39916800.0, 1.0 / 479001600.0, 1.0 / 6227020800.0
+# Taylor coefficients 1 / j! of exp, highest degree first (j = 13 .. 0), for Horner's scheme
+_EXP_TAYLOR = tuple(1.0 / math.factorial(j) for j in range(13, -1, -1))
+# 2^-(2^j) for j = 0 .. 9: 2^-k is the product of those whose bit j is set in k (0 <= k <= 1021)
+_POW2_NEG = tuple(2.0 ** -(2**j) for j in range(10))
 # terms per logged product in _sum_log_sigmoid: factors are in [1, 2], so a product stays below 2^512
 _LOG_CHUNK = 512
 
@@ -388,41 +388,13 @@ def _exp_neg(a):
     a = min(a, _EXP_CLAMP)
     k = np.int64(a * _LOG2E + 0.5)
     q = (k * _LN2_HI - a) + k * _LN2_LO  # -r
-    p = _C13
-    p = p * q + _C12
-    p = p * q + _C11
-    p = p * q + _C10
-    p = p * q + _C9
-    p = p * q + _C8
-    p = p * q + _C7
-    p = p * q + _C6
-    p = p * q + _C5
-    p = p * q + _C4
-    p = p * q + _C3
-    p = p * q + _C2
-    p = p * q + _C1
-    p = p * q + _C0
-    scale = 1.0  # 2^-k for 0 <= k <= 1021, a product of 2^-(2^j) over the set bits j of k
-    if k & 1:
-        scale *= 0.5
-    if k & 2:
-        scale *= 0.25
-    if k & 4:
-        scale *= 0.0625
-    if k & 8:
-        scale *= 0.00390625
-    if k & 16:
-        scale *= 1.52587890625e-05
-    if k & 32:
-        scale *= 2.3283064365386963e-10
-    if k & 64:
-        scale *= 5.421010862427522e-20
-    if k & 128:
-        scale *= 2.938735877055719e-39
-    if k & 256:
-        scale *= 8.636168555094445e-78
-    if k & 512:
-        scale *= 7.458340731200207e-155
+    p = 0.0
+    for c in _EXP_TAYLOR:
+        p = p * q + c
+    scale = 1.0
+    for j in range(10):
+        if (k >> j) & 1:
+            scale *= _POW2_NEG[j]
     return p * scale
 
 
