@@ -12,6 +12,8 @@ means over seeds.
         [--seeds 3] [--pm-sweeps 300 200]
 
 ``--pm-sweeps N_ITER N_BURN_IN`` overrides PM's sweeps (the quick study's 300/200 by default).
+``--compare before after`` runs nothing and prints the before/after table of two earlier runs (means over
+seeds: error, its change, largest predicted angle).
 """
 
 import argparse
@@ -38,6 +40,18 @@ def load(activity):
     return {"X": fs.X, "Y": fs.Y, "heading_column": 2}
 
 
+def compare(before, after):
+    """Print the mean error and largest |angle| per (activity, N, method) of two runs side by side."""
+    res = ROOT / "benchmarks" / "results"
+    agg = {"error": ("error", "mean"), "max_abs_angle": ("max_abs_angle", "max"), "seeds": ("seed", "nunique")}
+    b, a = (pd.read_csv(res / f"contiguous_{t}.csv").groupby(["activity", "n_train", "method"], sort=False)
+            .agg(**agg) for t in (before, after))
+    t = b.join(a, lsuffix="_before", rsuffix="_after", how="inner")
+    t["change"] = t["error_after"] - t["error_before"]
+    cols = ["error_before", "error_after", "change", "max_abs_angle_before", "max_abs_angle_after", "seeds_after"]
+    print(t[cols].to_markdown(floatfmt=".4g") if hasattr(t, "to_markdown") else t[cols].to_string())
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tag", required=True, help="name of the run (results/contiguous_<tag>.csv)")
@@ -46,7 +60,10 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--methods", nargs="+", default=None, help="keys of config.yaml's methods (default: run)")
     ap.add_argument("--pm-sweeps", nargs=2, type=int, default=None, metavar=("N_ITER", "N_BURN_IN"))
+    ap.add_argument("--compare", nargs=2, metavar=("TAG_BEFORE", "TAG_AFTER"), default=None)
     args = ap.parse_args(argv)
+    if args.compare:
+        return compare(*args.compare)
 
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     methods = args.methods or cfg["run"]

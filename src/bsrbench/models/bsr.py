@@ -84,7 +84,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         are mapped back); False: the raw X and Y.
     input_scaling : {"pooled", "bin", "none"}, default="pooled"
         Scaling of X (:class:`bsrbench.models.scaling.InputScaler`): each feature centred and all divided by
-        one pooled scale, chosen by blocked 5-fold CV on training frames (:mod:`bsrbench.models.scaling`).
+        one pooled scale, chosen by blocked 5-fold CV on training frames (:mod:`bsrbench.models.scaling`:
+        5.19 deg at N = 30 against 6.04 for floored per-bin scaling and 6.62 for raw counts).
         The former per-feature standardization let the prediction explode off the training range (issue 14:
         3.6e7 deg on a contiguous split of the acrobatics features): the model is linear in x.
     random_state : int, RandomState instance or None, default=None
