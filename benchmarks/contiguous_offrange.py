@@ -10,8 +10,12 @@ means over seeds.
 
     .venv/bin/python benchmarks/contiguous_offrange.py --tag after [--activities acrobatics] [--sizes 30]
         [--seeds 3] [--pm-sweeps 300 200]
+    .venv/bin/python benchmarks/contiguous_offrange.py --compare before after
 
 ``--pm-sweeps N_ITER N_BURN_IN`` overrides PM's sweeps (the quick study's 300/200 by default).
+Issue 14's "before" run used the code before the shared input scaling (commit 183491a) with this script:
+``git archive 183491a | tar -x -C /tmp/before``, copy this file into /tmp/before/benchmarks, run it there with
+``PYTHONPATH=/tmp/before/src``, and copy its CSV into benchmarks/results.
 ``--compare before after`` runs nothing and prints the before/after table of two earlier runs (means over
 seeds: error, its change, largest predicted angle).
 """
@@ -46,7 +50,7 @@ def compare(before, after):
     agg = {"error": ("error", "mean"), "max_abs_angle": ("max_abs_angle", "max"), "seeds": ("seed", "nunique")}
     b, a = (pd.read_csv(res / f"contiguous_{t}.csv").groupby(["activity", "n_train", "method"], sort=False)
             .agg(**agg) for t in (before, after))
-    t = b.join(a, lsuffix="_before", rsuffix="_after", how="inner")
+    t = b.join(a, suffixes=("_before", "_after"), how="inner")
     t["change"] = t["error_after"] - t["error_before"]
     cols = ["error_before", "error_after", "change", "max_abs_angle_before", "max_abs_angle_after", "seeds_after"]
     print(t[cols].to_markdown(floatfmt=".4g") if hasattr(t, "to_markdown") else t[cols].to_string())
@@ -54,7 +58,7 @@ def compare(before, after):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tag", required=True, help="name of the run (results/contiguous_<tag>.csv)")
+    ap.add_argument("--tag", help="name of the run (results/contiguous_<tag>.csv); required unless --compare")
     ap.add_argument("--activities", nargs="+", default=list(ACTIVITIES), choices=list(ACTIVITIES))
     ap.add_argument("--sizes", nargs="+", type=int, default=[30])
     ap.add_argument("--seeds", type=int, default=3)
@@ -64,6 +68,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.compare:
         return compare(*args.compare)
+    if not args.tag:
+        ap.error("--tag is required (unless --compare)")
 
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
     methods = args.methods or cfg["run"]
