@@ -5,7 +5,7 @@ training size N and seed, the study's own job function (:func:`bsrbench.study.ru
 ``config/config.yaml`` with its fixed ``params`` (``cv.mode: none``, as a new user's first run) on the
 contiguous split of :func:`bsrbench.study.make_split` (gap 30, min_test 100, heading transform), and records
 the mean angle error (deg) and the largest absolute predicted angle (deg, before wrapping). Writes one row
-per (activity, N, seed, method) to ``benchmarks/results/contiguous_<tag>.csv`` and prints the table of
+per (activity, N, seed, method) to ``benchmarks/results/<protocol>_<tag>.csv`` and prints the table of
 means over seeds.
 
     .venv/bin/python benchmarks/contiguous_offrange.py --tag after [--activities acrobatics] [--sizes 30]
@@ -44,11 +44,11 @@ def load(activity):
     return {"X": fs.X, "Y": fs.Y, "heading_column": 2}
 
 
-def compare(before, after):
+def compare(before, after, protocol="contiguous"):
     """Print the mean error and largest |angle| per (activity, N, method) of two runs side by side."""
     res = ROOT / "benchmarks" / "results"
     agg = {"error": ("error", "mean"), "max_abs_angle": ("max_abs_angle", "max"), "seeds": ("seed", "nunique")}
-    b, a = (pd.read_csv(res / f"contiguous_{t}.csv").groupby(["activity", "n_train", "method"], sort=False)
+    b, a = (pd.read_csv(res / f"{protocol}_{t}.csv").groupby(["activity", "n_train", "method"], sort=False)
             .agg(**agg) for t in (before, after))
     t = b.join(a, suffixes=("_before", "_after"), how="inner")
     t["change"] = t["error_after"] - t["error_before"]
@@ -64,10 +64,12 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--methods", nargs="+", default=None, help="keys of config.yaml's methods (default: run)")
     ap.add_argument("--pm-sweeps", nargs=2, type=int, default=None, metavar=("N_ITER", "N_BURN_IN"))
+    ap.add_argument("--protocol", default="contiguous", choices=["contiguous", "random"],
+                    help="split protocol (random: the paper's, to see how its tables move)")
     ap.add_argument("--compare", nargs=2, metavar=("TAG_BEFORE", "TAG_AFTER"), default=None)
     args = ap.parse_args(argv)
     if args.compare:
-        return compare(*args.compare)
+        return compare(*args.compare, protocol=args.protocol)
     if not args.tag:
         ap.error("--tag is required (unless --compare)")
 
@@ -85,7 +87,7 @@ def main(argv=None):
                         if m == "PM" and args.pm_sweeps:
                             params.update(n_iter=args.pm_sweeps[0], n_burn_in=args.pm_sweeps[1])
                         spec = JobSpec(source="hsc", activity=activity, method=m, n_train=n, seed=seed,
-                                       protocol="contiguous", pose_transform=cfg["pose_transform"],
+                                       protocol=args.protocol, pose_transform=cfg["pose_transform"],
                                        min_test=cfg["min_test"], gap=cfg["gap"])
                         t0 = time.perf_counter()
                         row, arrays = run_job(spec, features, estimator=spec_m["estimator"], params=params)
@@ -100,7 +102,7 @@ def main(argv=None):
                         print(f"{activity} N={n} seed={seed} {r['method']:5s} error {r['error']:7.2f} "
                               f"max|angle| {r['max_abs_angle']:.3g} ({r['seconds']:.1f} s)", flush=True)
     df = pd.DataFrame(rows)
-    out = ROOT / "benchmarks" / "results" / f"contiguous_{args.tag}.csv"
+    out = ROOT / "benchmarks" / "results" / f"{args.protocol}_{args.tag}.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
         df.to_csv(tmp, index=False)
