@@ -41,6 +41,7 @@ from .reference import (
     _validate_fit,
     _validate_predict,
 )
+from .scaling import InputScaler
 from .sr import _normalize_rows
 
 
@@ -127,6 +128,13 @@ class DDL(RegressorMixin, BaseEstimator):
         Tolerance of dictionary learning.
     random_state : int, Generator-compatible seed or None
         Seed of the dictionary initialisation.
+
+    Input scaling: the (L2-normalized) features are centred per feature and divided by ONE pooled scale
+    (``InputScaler("pooled")`` of :mod:`bsrbench.models.scaling`, the scaling every estimator shares; chosen
+    by blocked CV there) and by ``sqrt(d_x)``, so no histogram bin is amplified on its own. Predictions
+    (``D_y z`` in degrees) are clipped to the training range of each output widened by half its width on each
+    side (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
+    non-finite feature.
     """
 
     def __init__(
@@ -155,7 +163,7 @@ class DDL(RegressorMixin, BaseEstimator):
         return tags
 
     def _stack_x(self, X):
-        return (_normalize_rows(X, self.normalize) - self.x_mean_) / self.x_scale_
+        return self.x_scaler_.transform(_normalize_rows(X, self.normalize)) / np.sqrt(X.shape[1])
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
@@ -169,10 +177,12 @@ class DDL(RegressorMixin, BaseEstimator):
         rng = np.random.default_rng(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
         self.n_outputs_ = Y.shape[1]
         Xn = _normalize_rows(X, self.normalize)
-        self.x_mean_, self.x_scale_ = _block_scale(Xn)
+        # the feature block: each feature centred, all divided by one pooled scale (the shared "pooled"
+        # input scaling of bsrbench.models.scaling) and by sqrt(d_x) (Yang et al.'s block weighting)
+        self.x_scaler_ = InputScaler("pooled").fit(Xn)
         self.y_mean_, ys = _block_scale(Y)
         self.y_scale_ = ys / float(self.pose_weight)
-        Z = np.hstack([(Xn - self.x_mean_) / self.x_scale_, (Y - self.y_mean_) / self.y_scale_])
+        Z = np.hstack([self._stack_x(X), (Y - self.y_mean_) / self.y_scale_])
         D, codes, n_iter = _coupled_dictionary_learning(
             Z, int(self.n_components), float(self.alpha), int(self.max_iter), float(self.tol), rng
         )

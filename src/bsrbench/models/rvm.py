@@ -85,6 +85,14 @@ class RVM(RegressorMixin, BaseEstimator):
     prune_threshold : float > 0
         Basis functions with ``alpha_m > prune_threshold`` are pruned.
 
+    Input scaling: none. The Gaussian kernel acts on the raw features (its width is relative to their
+    median pairwise distance), so an input far off the training range gives kernel values near 0 and a
+    prediction near the bias, never an amplified one; per-feature standardization would re-weight the
+    histogram bins by their training spread (:mod:`bsrbench.models.scaling` compares the rules). Predicted
+    means are clipped to the training range of each output widened by half its width on each side
+    (:func:`bsrbench.models.scaling.output_bounds`); the std is not. Raises ``InputError`` for a bad
+    parameter or a non-finite feature.
+
     Attributes
     ----------
     relevance_ : ndarray of int
@@ -226,7 +234,7 @@ class RVM(RegressorMixin, BaseEstimator):
         var = var_w + 1.0 / beta[None, :]
         std = np.zeros_like(mean)
         std[:, inf] = np.sqrt(np.broadcast_to(var, (mean.shape[0], int(inf.sum())))) * self.y_scale_[inf]
-        return _format_output(self, mean), _format_output(self, std)
+        return _format_output(self, mean), _format_output(self, std, clip=False)
 
 
 DEFAULT_GRID = {"width_scale": [0.25, 0.5, 1.0]}

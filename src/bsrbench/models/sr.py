@@ -96,6 +96,13 @@ class SR(RegressorMixin, BaseEstimator):
         Iterations of the solver.
     tol : float > 0
         Tolerance of coordinate descent.
+
+    Input scaling: each feature vector is scaled to unit L2 norm (``normalize``), no per-feature scaling, so
+    an input off the training range changes only the code, not the scale of the pose. With positive,
+    normalized codes the pose is a convex combination of training poses; in any case predictions are clipped
+    to the training range of each output widened by half its width on each side
+    (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
+    non-finite feature.
     """
 
     _predict_time_params = ("alpha",)

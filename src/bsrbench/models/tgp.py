@@ -27,6 +27,7 @@ from scipy.optimize import minimize
 from sklearn.base import BaseEstimator, RegressorMixin
 
 from ..errors import InputError
+from .scaling import check_input_scaling
 from .reference import (
     RidgeRegressor,
     _check_choice,
@@ -75,11 +76,21 @@ class TGP(RegressorMixin, BaseEstimator):
         feature space). Only acts at prediction time (``predict(X, n_neighbors=...)``).
     init : {"knn", "ridge"}
         Start of the optimisation: the pose of the nearest training feature, or a ridge regression
-        prediction (``RidgeRegressor(alpha=1.0)`` on standardized features). Only acts at prediction time.
+        prediction (``RidgeRegressor(alpha=1.0, input_scaling=input_scaling)``). Only acts at prediction
+        time.
+    input_scaling : {"pooled", "bin", "none"}
+        Input scaling of the ridge start (:class:`bsrbench.models.scaling.InputScaler`).
     max_iter : int >= 1
         Maximum L-BFGS-B iterations per test point.
     tol : float > 0
         L-BFGS-B ``ftol`` and ``gtol``.
+
+    Input scaling: the kernels act on the raw features (widths relative to the median pairwise distance);
+    the ridge start is ``RidgeRegressor`` with the shared input scaling (``input_scaling``, default "pooled")
+    (:mod:`bsrbench.models.scaling`), which cannot explode off the training range (issue 14: the former
+    per-feature standardization started TGP at poses of 1e7 deg). Predictions are clipped to the training
+    range of each output widened by half its width on each side (:func:`bsrbench.models.scaling.output_bounds`).
+    Raises ``InputError`` for a bad parameter or a non-finite feature.
     """
 
     _predict_time_params = ("n_neighbors", "init")
@@ -92,6 +103,7 @@ class TGP(RegressorMixin, BaseEstimator):
         lambda_y=1e-3,
         n_neighbors=None,
         init="knn",
+        input_scaling="pooled",
         max_iter=100,
         tol=1e-6,
     ):
@@ -101,6 +113,7 @@ class TGP(RegressorMixin, BaseEstimator):
         self.lambda_y = lambda_y
         self.n_neighbors = n_neighbors
         self.init = init
+        self.input_scaling = input_scaling
         self.max_iter = max_iter
         self.tol = tol
 
@@ -119,6 +132,7 @@ class TGP(RegressorMixin, BaseEstimator):
             _check_number(name, getattr(self, name), low=0, low_open=True)
         _check_number("max_iter", self.max_iter, low=1, integer=True)
         _check_choice("init", self.init, {"knn", "ridge"})
+        check_input_scaling(self.input_scaling)
         n = X.shape[0]
         self._check_k(self.n_neighbors, n)
         self.n_outputs_ = Y.shape[1]
@@ -132,7 +146,7 @@ class TGP(RegressorMixin, BaseEstimator):
         self._Kx_cho = cho_factor(self.Kx_, lower=True)
         Ky_cho = cho_factor(self.Ky_, lower=True)
         self.Ky_inv_ = cho_solve(Ky_cho, np.eye(n))
-        self.ridge_ = RidgeRegressor(alpha=1.0).fit(X, Y)
+        self.ridge_ = RidgeRegressor(alpha=1.0, input_scaling=self.input_scaling).fit(X, Y)
         return self
 
     def predict(self, X, n_neighbors=_FROM_PARAMS, init=_FROM_PARAMS):
