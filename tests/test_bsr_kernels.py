@@ -360,41 +360,102 @@ def test_code_pair_against_grid():
     np.testing.assert_allclose(R, v - (B * S) * d[None, :], atol=1e-12)
 
 
-def test_g_xy_against_grid():
-    """g_xy | - ∝ Gamma(g; a, b) prod N(r; 0, 1/g) on a grid, vs repeated kernel draws."""
-    s, data, h = _problem(23, N=4, K=3, Mx=2, My=2)
+# precision (index in prec) -> the Gaussian factors it scales, written from the joint density
+_PREC_FACTORS = {
+    "g_s": (0, lambda s, Mx: s.S),
+    "g_xy": (1, lambda s, Mx: s.R),
+    "g_x": (2, lambda s, Mx: s.D[:, :Mx]),
+    "g_y": (3, lambda s, Mx: s.D[:, Mx:]),
+    "g_nx": (4, lambda s, Mx: s.R[:, :Mx]),
+    "g_ny": (5, lambda s, Mx: s.R[:, Mx:]),
+}
+
+
+@pytest.mark.parametrize(
+    "name, variant",
+    [("g_s", "paper"), ("g_x", "paper"), ("g_y", "paper"), ("g_xy", "paper"), ("g_xy", "noise-prior"),
+     ("g_nx", "separate"), ("g_ny", "separate")],
+)
+def test_precision_against_grid(name, variant):
+    """Each precision's conditional ∝ Gamma(g; a, b) prod_j N(u_j; 0, 1/g) over the values u it scales (all N K
+    weights s for g_s, the atoms' feature / output parts for g_x / g_y, the residuals for the noise precisions,
+    with the noise prior (a_xy, b_xy) and split by rows under separate noise), on a grid vs repeated kernel
+    draws."""
+    s, data, h = _problem(23, N=4, K=3, Mx=2, My=2, a=2.0, b=1.5, **MODEL_VARIANTS[variant])
+    idx, values = _PREC_FACTORS[name]
+    a, b = h.noise_ab if idx in (1, 4, 5) else (h.a0, h.b0)
     rng = np.random.default_rng(24)
     draws = np.empty(20000)
     prec = s.prec.copy()
     for t in range(draws.size):
-        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng)
-        draws[t] = prec[1]
-    rr, n = np.sum(s.R**2), s.R.size
-    grid = np.linspace(1e-6, draws.max() * 3, 40001)
-    logd = (h.a0 - 1) * np.log(grid) - h.b0 * grid + 0.5 * n * np.log(grid) - 0.5 * grid * rr
+        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng, *h.noise_ab, h.noise == "separate")
+        draws[t] = prec[idx]
+    u = values(s, data.Mx)
+    uu, n = np.sum(u**2), u.size
+    grid = np.linspace(1e-9, draws.max() * 3, 40001)
+    logd = (a - 1) * np.log(grid) - b * grid + 0.5 * n * np.log(grid) - 0.5 * grid * uu
     assert stats.kstest(draws, _grid_cdf(grid, logd)).pvalue > 1e-3
 
 
+def test_code_pair_separate_noise_against_grid():
+    """(b, s) under separate noise precisions: p(b, s | -) ∝ sig(z w) N(s; 0, 1/g_s) N(x; d^x b s, 1/g_nx I)
+    N(y; d^y b s, 1/g_ny I), vs repeated kernel draws."""
+    rng = np.random.default_rng(31)
+    Mx, My, n_rep = 3, 2, 40000
+    d = rng.standard_normal(Mx + My) * 0.6
+    v = 0.8 * d + 0.3 * rng.standard_normal(Mx + My)
+    w, g_s, g_nx, g_ny = 0.3, 1.5, 0.6, 6.0
+    R = np.tile(v, (n_rep, 1))
+    B = np.zeros((n_rep, 1), dtype=np.int8)
+    S = np.zeros((n_rep, 1))
+    kern.update_codes_separate(R, d[None, :].copy(), B, S, np.full((n_rep, 1), w), g_s, g_nx, g_ny, Mx,
+                               np.random.default_rng(32))
+    grid = np.linspace(-6, 6, 20001)
+    c = np.where(np.arange(Mx + My) < Mx, g_nx, g_ny)
+
+    def log_joint(b, s):
+        resid = v[None, :] - b * s[:, None] * d[None, :]
+        return np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 - 0.5 * np.sum(c * resid**2, axis=1)
+
+    l1, l0 = log_joint(1, grid), log_joint(0, grid)
+    m = max(l1.max(), l0.max())
+    i1, i0 = np.trapezoid(np.exp(l1 - m), grid), np.trapezoid(np.exp(l0 - m), grid)
+    p1 = i1 / (i1 + i0)
+    on = B[:, 0] == 1
+    assert 0.1 < p1 < 0.9
+    assert stats.binomtest(int(on.sum()), n_rep, p1).pvalue > 1e-3
+    assert stats.kstest(S[on, 0], _grid_cdf(grid, l1)).pvalue > 1e-3
+    assert stats.kstest(S[~on, 0], _grid_cdf(grid, l0)).pvalue > 1e-3
+    np.testing.assert_allclose(R, v - (B * S) * d[None, :], atol=1e-12)
+
+
 @pytest.mark.parametrize("atom_update", ["block", "single"])
-def test_atom_rows_against_grid(atom_update):
-    """Two atoms, one feature row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square).
-    The block update draws it exactly; one-at-a-time updates are a Gibbs chain on it (thinned by 5)."""
+@pytest.mark.parametrize("row", ["feature", "output-separate-noise"])
+def test_atom_rows_against_grid(atom_update, row):
+    """Two atoms, one row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square).
+    The block update draws it exactly; one-at-a-time updates are a Gibbs chain on it (thinned by 5). A feature
+    row uses (g_xy, g_x); an output row under separate noise precisions uses (g_ny, g_y), and must ignore the
+    feature rows' g_nx and g_x (set to wrong values here)."""
     rng = np.random.default_rng(25)
-    N, K, Mx = 6, 2, 1
+    N, K = 6, 2
     B = np.ones((N, K), dtype=np.int8)
     S = rng.standard_normal((N, K))
-    V = rng.standard_normal((N, Mx))
-    g_xy, g_x = 1.7, 0.9
+    V = rng.standard_normal((N, 1))
+    g_xy, g_x = 1.7, 0.9  # the row's noise and atom precisions
+    if row == "feature":
+        Mx, args, g_ny = 1, (g_xy, g_x, 1.0), -1.0
+    else:
+        Mx, args, g_ny = 0, (50.0, 20.0, g_x), g_xy
     n_rep = 30000
     draws = np.empty((n_rep, K))
-    D = np.zeros((K, Mx))
+    D = np.zeros((K, 1))
     R, norms = V.copy(), np.zeros(K)
     for t in range(n_rep):
         if atom_update == "block":
-            kern.update_atoms(V, R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+            kern.update_atoms(V, R, D, norms, B, S, *args, Mx, rng, g_ny)
         else:
             for _ in range(5):
-                kern.update_atoms_single(R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+                kern.update_atoms_single(R, D, norms, B, S, *args, Mx, rng, g_ny)
         draws[t] = D[:, 0]
     A = B * S
     lim = 1.2 * np.abs(draws).max()
@@ -419,30 +480,32 @@ def test_atom_rows_against_grid(atom_update):
 
 
 @pytest.mark.parametrize("w_update", ["mh", "ess"])
-def test_w_update_leaves_target_invariant(w_update):
+@pytest.mark.parametrize("w_mean", [0.0, -2.0])
+def test_w_update_leaves_target_invariant(w_update, w_mean):
     """Exact draws of w_k (rejection from the prior) stay exact after one update: marginal of w_1 vs a grid.
 
-    Target: N(w; 0, Sigma) prod_i sig(z_i w_i), N = 2, many independent atoms at once.
+    Target: N(w; m 1, Sigma) prod_i sig(z_i w_i), N = 2, many independent atoms at once.
     """
     rng = np.random.default_rng(26)
     Sigma = np.array([[4.0, 2.0], [2.0, 4.0]])
     Lw = np.linalg.cholesky(Sigma)
     z = np.array([1.0, -1.0])
     K = 30000
-    prop = Lw @ rng.standard_normal((2, 8 * K))
+    prop = Lw @ rng.standard_normal((2, 8 * K)) + w_mean
     keep = rng.random(8 * K) < np.prod(expit(z[:, None] * prop), axis=0)
     W = np.ascontiguousarray(prop[:, keep][:, :K])
     assert W.shape == (2, K)
     B = np.tile((z > 0).astype(np.int8)[:, None], (1, K))
     if w_update == "mh":
-        acc = kern.update_w_mh(W, B, Sigma, Lw, rng, False)
+        acc = kern.update_w_mh(W, B, Sigma, Lw, rng, kern.MH_EXACT, w_mean)
         assert 0.05 * K < acc < K
     else:
-        kern.update_w_ess(W, B, Lw, rng)
+        kern.update_w_ess(W, B, Lw, rng, w_mean)
     g = np.linspace(-15, 15, 1201)
     w1, w2 = np.meshgrid(g, g, indexing="ij")
     Si = np.linalg.inv(Sigma)
-    logd = (-0.5 * (Si[0, 0] * w1**2 + 2 * Si[0, 1] * w1 * w2 + Si[1, 1] * w2**2)
+    u1, u2 = w1 - w_mean, w2 - w_mean
+    logd = (-0.5 * (Si[0, 0] * u1**2 + 2 * Si[0, 1] * u1 * u2 + Si[1, 1] * u2**2)
             + np.log(expit(z[0] * w1)) + np.log(expit(z[1] * w2)))
     dens = np.exp(logd - logd.max())
     marg = np.log(dens.sum(axis=1))
