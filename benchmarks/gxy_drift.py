@@ -49,6 +49,9 @@ SETTINGS = [
     # the rate b of the prior on g_xy sets where the chain stops: g_xy ~ c / b
     ("K=64, b_xy=1e-4", dict(n_atoms=64, b_xy=1e-4)),
     ("K=64, b_xy=1e-8", dict(n_atoms=64, b_xy=1e-8)),
+    # a sparsity-inducing logit prior mean: fewer active atoms K_act, so by the power counting of the docs a
+    # larger exponent c = (M - K_act) / 2, unless the codes stop interpolating
+    ("K=64, w_prior_mean=-3", dict(n_atoms=64, w_prior_mean=-3.0)),
     # the training pairs standardized with the statistics of all 600 frames, so that they are not centred
     # (no exact linear dependency 1^T V = 0 among them): then c -> 0
     ("K=64, not centred", dict(n_atoms=64, standardize=False)),
