@@ -121,12 +121,11 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     n_features_in_ : int
     n_outputs_ : int
     trace_ : dict of ndarray, one value per sweep
-        ``log_likelihood``, ``g_xy``, ``g_s``, ``g_x``, ``g_y``, ``g_nx``, ``g_ny``, ``active_atoms`` (atoms used
-        by any training point), ``acceptance`` (fraction of logit vectors that moved: the MH acceptance rate;
-        for ESS the fraction whose slice move changed them, 1 unless the shrinkage degenerated). With one shared
-        noise precision g_nx = g_ny = g_xy; with ``noise="separate"``, ``g_xy`` is the pooled precision
-        ``M / (Mx / g_nx + My / g_ny)`` (the inverse mean noise variance over all rows, comparable with the
-        shared g_xy).
+        ``log_likelihood``, ``g_xy``, ``g_s``, ``g_x``, ``g_y``, ``active_atoms`` (atoms used by any training
+        point), ``acceptance`` (fraction of logit vectors that moved: the MH acceptance rate; for ESS the fraction
+        whose slice move changed them, 1 unless the shrinkage degenerated). With ``noise="separate"`` also
+        ``g_nx`` and ``g_ny``, and ``g_xy`` is then their pooled precision ``M / (Mx / g_nx + My / g_ny)`` (the
+        inverse of the mean noise variance over all M rows, comparable with the shared g_xy).
     samples_ : dict of ndarray
         Retained posterior samples: ``Dx`` (L, K, Mx), ``Dy`` (L, K, My), ``W`` (L, N, K), ``g_s``, ``g_xy``,
         ``g_nx``, ``g_ny`` (L,), in standardized units.
@@ -283,6 +282,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         gny = np.empty(n_keep)
         names = ("log_likelihood", "g_xy", "g_s", "g_x", "g_y", "g_nx", "g_ny", "active_atoms", "acceptance")
         trace = {name: np.empty(self.n_iter) for name in names}
+        if self.noise == "shared":  # g_nx = g_ny = g_xy: not traced twice
+            del trace["g_nx"], trace["g_ny"]
 
         level = logging.INFO if self.verbose else logging.DEBUG
         t0 = time.perf_counter()
@@ -304,7 +305,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                     f"check the scale of X and Y (standardize=True) and the hyper-priors a0, b0"
                 )
             for name, val in zip(names, (stats[0], g_xy, g_s, g_x, g_y, g_nx, g_ny, stats[1], stats[2])):
-                trace[name][it] = val
+                if name in trace:
+                    trace[name][it] = val
             if it in keep_at:
                 Dx[slot] = state.D[:, :Mx]
                 Dy[slot] = state.D[:, Mx:]
