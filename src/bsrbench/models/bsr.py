@@ -92,7 +92,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         averaged logits w_t of its j nearest training inputs, by ``n_predict_sweeps`` Gibbs sweeps of the block
         update on the feature rows (the model reference's reading of the paper). "paper-text": as the paper's
         Section "Pose Prediction" says, z_t ~ P(z_t | w_t) from the logits alone (not conditioned on x_t), then
-        s_t | x_t, z_t exactly from its Gaussian (an ablation; combine with ``prediction_weighting``).
+        s_t | x_t, z_t exactly from its Gaussian (an ablation; combine with ``prediction_weighting``;
+        ``n_predict_sweeps`` is not used).
     prediction_weighting : {"uniform", "likelihood"}, default="uniform"
         Average posterior samples uniformly, or with the paper's self-normalized weights
         ``beta_l = N(x_t; D^x alpha_t, 1/g_xy I)`` (g_nx with separate noise precisions).
