@@ -44,98 +44,142 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     norms[:] = np.sum(D * D, axis=1)
 
 
-def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
-    """All atoms given the codes: the rows of D^x (D^y) share the precision g_x I + g_xy A A^T."""
+def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
+    """(b_ki, s_ki) block update with noise precision g_nx on the feature rows and g_ny on the output rows,
+    written with the weighted inner products (no rescaling); same draw order as update_codes."""
+    N, K = B.shape
+    c = np.where(np.arange(D.shape[1]) < Mx, g_nx, g_ny)  # noise precision per row of v
+    for i in range(N):
+        U = rng.random(K)
+        Zn = rng.standard_normal(K)
+        for k in range(K):
+            d = D[k]
+            a_old = S[i, k] * B[i, k]
+            r_minus = R[i] + d * a_old
+            tau = g_s + np.sum(c * d * d)
+            mu = np.sum(c * d * r_minus) / tau
+            logit = W[i, k] + 0.5 * np.log(g_s / tau) + 0.5 * tau * mu**2
+            on = U[k] < sigmoid(logit)
+            z = Zn[k]
+            s = mu + z / np.sqrt(tau) if on else z / np.sqrt(g_s)
+            B[i, k] = int(on)
+            S[i, k] = s
+            R[i] = r_minus - d * (s if on else 0.0)
+
+
+def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
+    """All atoms given the codes: the rows of D^x (D^y) share the precision g_x I + g_xy A A^T
+    (g_y I + g_ny A A^T with separate noise precisions; g_xy is then g_nx)."""
+    g_ny = g_xy if g_ny is None else g_ny
     K, M = D.shape
     A = (B * S).T  # K x N
     E = rng.standard_normal((K, M))
-    for lo, hi, g in ((0, Mx, g_x), (Mx, M, g_y)):
+    for lo, hi, g, gn in ((0, Mx, g_x, g_xy), (Mx, M, g_y, g_ny)):
         if hi == lo:
             continue
-        P = g * np.eye(K) + g_xy * A @ A.T
+        P = g * np.eye(K) + gn * A @ A.T
         L = np.linalg.cholesky(P)  # P = L L^T
-        mean_part = solve_triangular(L, g_xy * A @ V[:, lo:hi], lower=True)
+        mean_part = solve_triangular(L, gn * A @ V[:, lo:hi], lower=True)
         D[:, lo:hi] = solve_triangular(L.T, mean_part + E[:, lo:hi], lower=False)
     norms[:] = np.sum(D * D, axis=1)
     R[:, :] = V - A.T @ D
 
 
-def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
+def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
     """One atom at a time: d_k | rest with precision g + g_xy sum_i alpha_ki^2 and mean
-    g_xy sum_i alpha_ki r_i^(-k) / precision (MODEL.md), then the residual without and with the new atom."""
+    g_xy sum_i alpha_ki r_i^(-k) / precision (MODEL.md), then the residual without and with the new atom
+    (g_ny in place of g_xy on the output rows with separate noise precisions)."""
+    g_ny = g_xy if g_ny is None else g_ny
     K, M = D.shape
     E = rng.standard_normal((K, M))
     A = B * S
     for k in range(K):
         a = A[:, k]
         r_minus = R + np.outer(a, D[k])
-        for lo, hi, g in ((0, Mx, g_x), (Mx, M, g_y)):
-            p = g + g_xy * (a @ a)
-            D[k, lo:hi] = g_xy * (a @ r_minus[:, lo:hi]) / p + E[k, lo:hi] / np.sqrt(p)
+        for lo, hi, g, gn in ((0, Mx, g_x, g_xy), (Mx, M, g_y, g_ny)):
+            p = g + gn * (a @ a)
+            D[k, lo:hi] = gn * (a @ r_minus[:, lo:hi]) / p + E[k, lo:hi] / np.sqrt(p)
         R[:, :] = r_minus - np.outer(a, D[k])
     norms[:] = np.einsum("km,km->k", D, D)
 
 
-def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
-    """Gamma(shape, rate) conditionals of g_s, g_xy, g_x, g_y, in that order."""
+def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=None, b_xy=None, separate=False):
+    """Gamma(shape, rate) conditionals of g_s, g_xy (or g_nx, g_ny), g_x, g_y, in that order.
+    prec = [g_s, g_xy, g_x, g_y, g_nx, g_ny]; with separate noise g_xy is M / (Mx / g_nx + My / g_ny)."""
+    a_xy = a0 if a_xy is None or a_xy < 0 else a_xy
+    b_xy = b0 if b_xy is None or b_xy < 0 else b_xy
     N, K = S.shape
     M = D.shape[1]
     prec[0] = rng.gamma(a0 + N * K / 2, 1.0 / (b0 + 0.5 * np.sum(S**2)))
-    prec[1] = rng.gamma(a0 + N * M / 2, 1.0 / (b0 + 0.5 * np.sum(R**2)))
+    if separate:
+        prec[4] = rng.gamma(a_xy + N * Mx / 2, 1.0 / (b_xy + 0.5 * np.sum(R[:, :Mx] ** 2)))
+        if M > Mx:
+            prec[5] = rng.gamma(a_xy + N * (M - Mx) / 2, 1.0 / (b_xy + 0.5 * np.sum(R[:, Mx:] ** 2)))
+            prec[1] = M / (Mx / prec[4] + (M - Mx) / prec[5])
+        else:
+            prec[1] = prec[4]
+    else:
+        prec[1] = prec[4] = prec[5] = rng.gamma(a_xy + N * M / 2, 1.0 / (b_xy + 0.5 * np.sum(R**2)))
     prec[2] = rng.gamma(a0 + Mx * K / 2, 1.0 / (b0 + 0.5 * np.sum(D[:, :Mx] ** 2)))
     if M > Mx:
         prec[3] = rng.gamma(a0 + (M - Mx) * K / 2, 1.0 / (b0 + 0.5 * np.sum(D[:, Mx:] ** 2)))
 
 
-def log_target_w(w, z, Sigma_inv):
-    """log N(w; 0, Sigma) + sum_i log sigmoid(z_i w_i), up to a constant."""
-    return -0.5 * w @ Sigma_inv @ w + np.sum(log_sigmoid(z * w))
+def log_target_w(w, z, Sigma_inv, w_mean=0.0):
+    """log N(w; m 1, Sigma) + sum_i log sigmoid(z_i w_i), up to a constant."""
+    u = w - w_mean
+    return -0.5 * u @ Sigma_inv @ u + np.sum(log_sigmoid(z * w))
 
 
-def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
-    """MH with proposal N(Sigma Lambda(w), Sigma), written with explicit Gaussian densities.
+def update_w_mh(W, B, Sigma, Lw, rng, ratio="exact", w_mean=0.0):
+    """MH with proposal N(m + Sigma Lambda(w), Sigma), written with explicit Gaussian densities.
 
-    The correct ratio is p(w') q(w | w') / (p(w) q(w' | w)); the paper's printed ratio is
-    prod_i sig(z w'_i)/sig(z w_i) exp(-Lambda(w) . (w' - w)).
+    ratio "exact": p(w') q(w | w') / (p(w) q(w' | w)); "printed": the paper's printed ratio
+    prod_i sig(z w'_i)/sig(z w_i) exp(-Lambda(w) . (w' - w)) with lambda = sigmoid(-z w); "literal": the printed
+    ratio with lambda = sigmoid(+z w), as the appendix prints both.
     """
     N, K = W.shape
     Z = 2.0 * B - 1.0
     eps = rng.standard_normal((K, N)).T  # column k drives atom k
     U = rng.random(K)
     Sigma_inv = np.linalg.inv(Sigma)
+    sign = 1.0 if ratio == "literal" else -1.0
     accepted = 0
     for k in range(K):
         z, w = Z[:, k], W[:, k].copy()
-        lam = z * sigmoid(-z * w)
-        mu = Sigma @ lam
+        lam = z * sigmoid(sign * z * w)
+        mu = w_mean + Sigma @ lam
         wp = mu + Lw @ eps[:, k]
-        lamp = z * sigmoid(-z * wp)
-        mup = Sigma @ lamp
-        if paper_as_printed:
+        lamp = z * sigmoid(sign * z * wp)
+        mup = w_mean + Sigma @ lamp
+        if ratio in ("printed", "literal"):
             lr = np.sum(log_sigmoid(z * wp) - log_sigmoid(z * w)) - lam @ (wp - w)
         else:
             def log_q(x, m):  # log N(x; m, Sigma) up to a constant
                 return -0.5 * (x - m) @ Sigma_inv @ (x - m)
 
-            lr = log_target_w(wp, z, Sigma_inv) - log_target_w(w, z, Sigma_inv) + log_q(w, mup) - log_q(wp, mu)
+            lr = (log_target_w(wp, z, Sigma_inv, w_mean) - log_target_w(w, z, Sigma_inv, w_mean)
+                  + log_q(w, mup) - log_q(wp, mu))
         if np.log(U[k]) < lr:
             W[:, k] = wp
             accepted += 1
     return accepted
 
 
-def update_w_ess(W, B, Lw, rng):
-    """Elliptical slice sampling (Murray, Adams & MacKay 2010, Fig. 2) of each w_k."""
+def update_w_ess(W, B, Lw, rng, w_mean=0.0):
+    """Elliptical slice sampling (Murray, Adams & MacKay 2010, Fig. 2) of each w_k - m (prior N(0, Sigma));
+    returns the number of logit vectors that changed."""
     N, K = W.shape
     Z = 2.0 * B - 1.0
     Nu = Lw @ rng.standard_normal((K, N)).T  # column k: atom k's ellipse
+    moved = 0
     for k in range(K):
         z, w, nu = Z[:, k], W[:, k].copy(), Nu[:, k]
         log_y = np.sum(log_sigmoid(z * w)) + np.log(rng.random())
         theta = rng.random() * 2 * np.pi
         lo, hi = theta - 2 * np.pi, theta
         while True:
-            wp = w * np.cos(theta) + nu * np.sin(theta)
+            wp = w_mean + (w - w_mean) * np.cos(theta) + nu * np.sin(theta)
             if np.sum(log_sigmoid(z * wp)) > log_y:
                 break
             if theta < 0:
@@ -143,30 +187,47 @@ def update_w_ess(W, B, Lw, rng):
             else:
                 hi = theta
             theta = lo + rng.random() * (hi - lo)
+        moved += int(np.any(wp != w))
         W[:, k] = wp
-    return K
+    return moved
 
 
 def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
     """codes, atoms (+ residual), precisions, logits; returns [log-lik, active atoms, acceptance]."""
     D, norms, B, S, W, R, prec = state
     V, Mx, Sigma, Lw = data
-    update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+    a0, b0, a_xy, b_xy, w_mean, noise = hyper
+    separate = noise == "separate"
+    if separate:
+        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng)
+    else:
+        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+    g_nx, g_ny = prec[4], prec[5]
     if atom_update == "single":
-        update_atoms_single(R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
+        update_atoms_single(R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
     else:
-        update_atoms(V, R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
-    update_precisions(R, D, S, prec, Mx, hyper.a0, hyper.b0, rng)
+        update_atoms(V, R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
+    update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy, b_xy, separate)
     if w_update == "ess":
-        acc = update_w_ess(W, B, Lw, rng)
+        acc = update_w_ess(W, B, Lw, rng, w_mean)
     else:
-        acc = update_w_mh(W, B, Sigma, Lw, rng, w_update == "paper-as-printed")
-    loglik = 0.5 * R.size * np.log(prec[1] / (2 * np.pi)) - 0.5 * prec[1] * np.sum(R**2)
+        ratio = {"mh": "exact", "paper-printed-ratio": "printed", "paper-literal": "literal"}[w_update]
+        acc = update_w_mh(W, B, Sigma, Lw, rng, ratio, w_mean)
+    loglik = 0.0
+    for cols, g in ((slice(0, Mx), prec[4]), (slice(Mx, None), prec[5])):
+        r = R[:, cols]
+        if r.size:
+            loglik += 0.5 * r.size * np.log(g / (2 * np.pi)) - 0.5 * g * np.sum(r**2)
     return np.array([loglik, np.sum(B.any(axis=0)), acc / W.shape[1]])
 
 
-def redraw_data(V, R, D, B, S, g_xy, rng):
-    E = rng.standard_normal(V.shape) / np.sqrt(g_xy)
+def redraw_data(V, R, D, B, S, g_xy, rng, g_ny=None, Mx=0):
+    E = rng.standard_normal(V.shape)
+    if g_ny is None:
+        E /= np.sqrt(g_xy)
+    else:
+        E[:, :Mx] /= np.sqrt(g_xy)
+        E[:, Mx:] /= np.sqrt(g_ny)
     V[:, :] = (B * S) @ D + E
     R[:, :] = E
 
@@ -252,6 +313,34 @@ def predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, n_sweeps, seed):
                         alpha[k] = mu + rs.normal() / np.sqrt(tau)
                     else:
                         alpha[k] = 0.0
+            out_y[t, l] = Dy[l].T @ alpha
+            r = Xt[t] - Dx[l].T @ alpha
+            out_ll[t, l] = 0.5 * Mx * np.log(gxy[l] / (2 * np.pi)) - 0.5 * gxy[l] * r @ r
+    return out_y, out_ll
+
+
+def predict_draws_prior_codes(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, seed):
+    """The paper's text: z_t ~ Bernoulli(sigmoid(w_t)) from the neighbours' mean logits (K uniforms per sample),
+    then s_A | x_t, z_t ~ N(g_xy P^-1 D^x_A x_t, P^-1), P = g_s I + g_xy D^x_A D^x_A^T (one normal per active atom)."""
+    T, Mx = Xt.shape
+    L, K, _ = Dx.shape
+    out_y = np.empty((T, L, Dy.shape[2]))
+    out_ll = np.empty((T, L))
+    for t in range(T):
+        dist = np.sum((Xtr - Xt[t]) ** 2, axis=1)
+        J = np.argsort(dist, kind="stable")[:j]
+        rs = SplitMix(point_seed(Xt[t], seed))
+        for l in range(L):
+            wt = Ws[l][J].mean(axis=0)
+            on = np.array([rs.uniform() < sigmoid(wt[k]) for k in range(K)], dtype=bool)
+            A = Dx[l][on]  # active atoms' feature parts, one per row
+            alpha = np.zeros(K)
+            if on.any():
+                P = gs[l] * np.eye(A.shape[0]) + gxy[l] * A @ A.T
+                Lc = np.linalg.cholesky(P)
+                mean = np.linalg.solve(P, gxy[l] * A @ Xt[t])
+                eps = np.array([rs.normal() for _ in range(A.shape[0])])
+                alpha[on] = mean + solve_triangular(Lc.T, eps, lower=False)
             out_y[t, l] = Dy[l].T @ alpha
             r = Xt[t] - Dx[l].T @ alpha
             out_ll[t, l] = 0.5 * Mx * np.log(gxy[l] / (2 * np.pi)) - 0.5 * gxy[l] * r @ r

@@ -4,6 +4,7 @@ import logging
 
 import numpy as np
 import pytest
+from scipy import stats
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from bsrbench.errors import InputError, SamplerError
@@ -47,18 +48,31 @@ def _simulate(seed, n_train=150, n_test=300, K=8, Mx=12, My=4):
     return V[:n_train, :Mx], V[:n_train, Mx:], V[n_train:, :Mx], V[n_train:, Mx:], truth
 
 
-def _oracle_predict(Xtr, Xte, truth, j, n_copies=30, n_sweeps=10):
-    """The model's prediction with the true dictionaries, logits and precisions (in data units)."""
-    L = n_copies
-    K, Mx = truth["Dx"].shape
-    rep = lambda a: np.ascontiguousarray(np.broadcast_to(a, (L,) + a.shape))  # noqa: E731
-    nbr = kern.nearest_neighbours(np.ascontiguousarray(Xte), np.ascontiguousarray(Xtr), j)
-    seeds = kern.point_seeds(np.ascontiguousarray(Xte).view(np.uint64), np.uint64(7))
-    out_y = np.empty((Xte.shape[0], L, truth["Dy"].shape[1]))
-    kern.predict_kernel(np.ascontiguousarray(Xte), nbr, rep(truth["Dx"]), rep(truth["Dy"]), rep(truth["W"]),
-                        np.full(L, truth["g_s"]), np.full(L, truth["g_xy"]), n_sweeps, seeds, out_y,
-                        np.empty((Xte.shape[0], L)))
-    return out_y.mean(axis=1)
+def _oracle_predict(Xtr, Xte, truth, j):
+    """E[y_t | x_t] under the true dictionaries, precisions and logits (w_t = mean of the j nearest training
+    inputs' true logits), exactly, by enumerating all 2^K on/off patterns z (independent of the sampler's code):
+    p(z | x_t) ∝ prod_k sig(z_k w_tk) N(x_t; 0, D^x_A^T D^x_A / g_s + I / g_xy) and
+    E[s_A | x_t, z] = g_xy P^-1 D^x_A x_t with P = g_s I + g_xy D^x_A D^x_A^T (A = the atoms that are on)."""
+    Dx, Dy, g_s, g_xy = truth["Dx"], truth["Dy"], truth["g_s"], truth["g_xy"]
+    K, Mx = Dx.shape
+    d2 = ((Xte[:, None, :] - Xtr[None, :, :]) ** 2).sum(-1)
+    wt = truth["W"][np.argsort(d2, axis=1, kind="stable")[:, :j]].mean(axis=1)  # (T, K)
+    logp, ey = [], []
+    for bits in range(2**K):
+        on = np.array([(bits >> k) & 1 for k in range(K)], dtype=bool)
+        prior = np.sum(np.where(on, -np.logaddexp(0, -wt), -np.logaddexp(0, wt)), axis=1)
+        A = Dx[on]
+        C = A.T @ A / g_s + np.eye(Mx) / g_xy
+        logp.append(prior + stats.multivariate_normal(np.zeros(Mx), C).logpdf(Xte))
+        if on.any():
+            P = g_s * np.eye(on.sum()) + g_xy * A @ A.T
+            ey.append((g_xy * np.linalg.solve(P, A @ Xte.T)).T @ Dy[on])
+        else:
+            ey.append(np.zeros((Xte.shape[0], Dy.shape[1])))
+    logp = np.array(logp)
+    post = np.exp(logp - logp.max(axis=0))
+    post /= post.sum(axis=0)
+    return np.einsum("zt,ztm->tm", post, np.array(ey))
 
 
 @pytest.mark.parametrize("atom_update", ["block", "single"])
@@ -102,10 +116,21 @@ def test_prediction_batch_invariant_and_weighting():
     m = BayesianSR(**SMALL).fit(X[:30], Y[:30])
     full, sd = m.predict(X[30:], return_std=True)
     np.testing.assert_array_equal(m.predict(X[33:35]), full[3:5])
-    assert full.shape == sd.shape == (10, 3) and np.all(sd > 0)
+    assert full.shape == sd.shape == (10, 3)
+    # mean and std from the per-sample draws: weighted mean; spread of the draws plus the noise variance
+    draws, wts = m.predict_draws(X[30:])
+    assert draws.shape == (10, 5, 3) and wts.shape == (10, 5)
+    np.testing.assert_allclose(wts, 0.2)
+    np.testing.assert_allclose(full, draws.mean(axis=1), rtol=1e-12)
+    noise = np.mean(1.0 / m.samples_["g_xy"]) * m.y_scale_**2
+    np.testing.assert_allclose(sd**2, draws.var(axis=1) + noise, rtol=1e-10)
     m.set_params(prediction_weighting="likelihood")
     lw = m.predict(X[30:])
-    assert np.all(np.isfinite(lw)) and not np.allclose(lw, full)
+    draws_l, wts_l = m.predict_draws(X[30:])
+    np.testing.assert_array_equal(draws_l, draws)  # the weighting changes the weights only
+    np.testing.assert_allclose(wts_l.sum(axis=1), 1.0)
+    assert np.ptp(wts_l, axis=1).max() > 0.1
+    np.testing.assert_allclose(lw, np.einsum("tl,tlm->tm", wts_l, draws_l), rtol=1e-12)
 
 
 def test_traces_samples_and_logging(caplog):
@@ -119,9 +144,24 @@ def test_traces_samples_and_logging(caplog):
     assert m.samples_["W"].shape == (10, 40, 5) and m.samples_["Dx"].shape == (10, 5, 5)
     assert m.samples_["Dy"].shape == (10, 5, 3)
     np.testing.assert_array_equal(m.samples_["g_xy"], m.trace_["g_xy"][109::10])
-    assert np.all(m.trace_["acceptance"] == 1.0)  # elliptical slice sampling always moves
-    mh = BayesianSR(n_atoms=5, n_iter=40, n_burn_in=20, w_update="mh", random_state=0).fit(X, Y)
-    assert 0.0 <= mh.trace_["acceptance"].mean() < 1.0
+    assert "g_nx" not in m.trace_ and "g_ny" not in m.trace_  # one shared noise precision, traced as g_xy
+    np.testing.assert_array_equal(m.samples_["g_nx"], m.samples_["g_xy"])
+    np.testing.assert_array_equal(m.samples_["g_ny"], m.samples_["g_xy"])
+
+
+@pytest.mark.parametrize("w_update", ["ess", "mh"])
+def test_acceptance_trace_counts_moved_logit_vectors(w_update):
+    """The traced acceptance is the fraction of logit vectors w_k that changed in the sweep: checked against the
+    retained samples (thin=1) of every sweep after burn-in."""
+    X, Y = _toy()
+    m = BayesianSR(n_atoms=6, n_iter=40, n_burn_in=20, thin=1, w_update=w_update, random_state=0).fit(X, Y)
+    W = m.samples_["W"]  # sweeps 20 .. 39, in order
+    moved = np.any(W[1:] != W[:-1], axis=1).mean(axis=1)
+    np.testing.assert_array_equal(moved, m.trace_["acceptance"][21:])
+    if w_update == "mh":  # the global MH proposal is rejected often at N = 40; ESS moves every vector
+        assert moved.mean() < 0.9
+    else:
+        assert moved.mean() == 1.0
 
 
 def test_chain_summary_and_plot(tmp_path):
@@ -130,7 +170,18 @@ def test_chain_summary_and_plot(tmp_path):
     tab = diagnostics.chain_summary(fits)
     assert list(tab.index[:3]) == ["log_likelihood", "g_xy", "g_s"]
     assert (tab.loc["g_xy", "n_chains"], tab.loc["g_xy", "n_draws"]) == (3, 60)
-    assert 1.0 <= tab.loc["log_likelihood", "ess_bulk"] <= 180 and np.isfinite(tab.loc["g_s", "r_hat"])
+    assert np.isfinite(tab.loc["g_s", "r_hat"])
+    # ESS and R-hat of chains with a known answer: AR(1) chains with rho = 0.8 have ESS about
+    # n (1 - rho) / (1 + rho) per chain (4 x 4000 draws: 1778)
+    rng = np.random.default_rng(0)
+    rho, n = 0.8, 4000
+    ar = np.empty((4, n))
+    ar[:, 0] = rng.standard_normal(4)
+    for t in range(1, n):
+        ar[:, t] = rho * ar[:, t - 1] + np.sqrt(1 - rho**2) * rng.standard_normal(4)
+    ar_tab = diagnostics.chain_summary([{"g_s": a} for a in ar], burn_in=0, names=("g_s",))
+    assert abs(ar_tab.loc["g_s", "ess_bulk"] / (4 * n * (1 - rho) / (1 + rho)) - 1) < 0.25
+    assert ar_tab.loc["g_s", "r_hat"] < 1.01
     # a chain stuck elsewhere gives a large R-hat
     shifted = [dict(f.trace_) for f in fits]
     shifted[0]["g_s"] = shifted[0]["g_s"] + 10 * shifted[0]["g_s"].std()
@@ -140,6 +191,50 @@ def test_chain_summary_and_plot(tmp_path):
     assert out.stat().st_size > 1000
     with pytest.raises(InputError, match="chain 0: expected a fitted BayesianSR"):
         diagnostics.chain_summary([42])
+
+
+def test_separate_noise_precisions():
+    """noise="separate": g_nx and g_ny are traced apart and g_xy is their pooled precision; on data whose outputs
+    are far less noisy than its inputs, g_ny ends far above g_nx; the predictive std uses the output noise."""
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((60, 6))
+    Y = X[:, :2] @ rng.standard_normal((2, 3)) + 0.01 * rng.standard_normal((60, 3))
+    X = X + 1.0 * rng.standard_normal(X.shape)  # noisy inputs, nearly exact outputs given the latent
+    m = BayesianSR(n_atoms=4, n_iter=150, n_burn_in=100, thin=5, noise="separate", random_state=0).fit(X, Y)
+    tr = m.trace_
+    np.testing.assert_allclose(tr["g_xy"], 9 / (6 / tr["g_nx"] + 3 / tr["g_ny"]), rtol=1e-12)
+    assert np.median(tr["g_ny"][100:]) > 3 * np.median(tr["g_nx"][100:])
+    _, sd = m.predict(X[:5], return_std=True)
+    draws, _ = m.predict_draws(X[:5])
+    np.testing.assert_allclose(sd**2, draws.var(axis=1) + np.mean(1 / m.samples_["g_ny"]) * m.y_scale_**2,
+                               rtol=1e-10)
+
+
+def test_logit_prior_mean_and_noise_prior_reach_the_sampler():
+    """A strongly negative logit prior mean pulls the retained logits down and switches most codes off; a tight
+    proper Gamma prior on g_xy alone holds g_xy near its prior mean."""
+    X, Y = _toy()
+    base = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, random_state=0).fit(X, Y)
+    neg = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, w_prior_mean=-4.0, random_state=0).fit(X, Y)
+    assert neg.samples_["W"].mean() < -2.0 < base.samples_["W"].mean()
+    tight = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, a_xy=1e5, b_xy=1e5 / 0.5,
+                       random_state=0).fit(X, Y)
+    np.testing.assert_allclose(tight.trace_["g_xy"][30:], 0.5, rtol=0.02)
+    assert not np.allclose(base.trace_["g_xy"][30:], 0.5, rtol=0.2)
+
+
+@pytest.mark.parametrize("weighting", ["uniform", "likelihood"])
+def test_paper_text_prediction(weighting):
+    """prediction="paper-text": draws from the same posterior samples differ from the conditional prediction,
+    are finite, and the weighted mean of predict_draws is predict's output."""
+    X, Y = _toy()
+    m = BayesianSR(**{**SMALL, "prediction_weighting": weighting}).fit(X[:30], Y[:30])
+    cond, _ = m.predict_draws(X[30:])
+    m.set_params(prediction="paper-text")
+    draws, wts = m.predict_draws(X[30:])
+    assert np.all(np.isfinite(draws)) and not np.allclose(draws, cond)
+    np.testing.assert_allclose(m.predict(X[30:]), np.einsum("tl,tlm->tm", wts, draws), rtol=1e-12)
+    np.testing.assert_array_equal(m.predict(X[33:35]), m.predict(X[30:])[3:5])  # batch-invariant streams
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -183,6 +278,13 @@ def test_fewer_rows_than_neighbours():
         ({"atom_update": "joint"}, "atom_update must be one of .*got 'joint'"),
         ({"prediction_weighting": "max"}, "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'"),
         ({"a0": -1.0}, "a0 must be a positive finite number; got -1.0"),
+        ({"w_update": "paper-as-printed"}, "w_update must be one of .*paper-literal.*got 'paper-as-printed'"),
+        ({"prediction": "prior"}, r"prediction must be one of \['conditional', 'paper-text'\]; got 'prior'"),
+        ({"a_xy": 0.0}, "a_xy must be a positive finite number; got 0.0"),
+        ({"b_xy": "1"}, "b_xy must be a positive number; got '1'"),
+        ({"w_prior_mean": np.inf}, "w_prior_mean must be a finite number; got inf"),
+        ({"w_prior_mean": None}, "w_prior_mean must be a finite number; got None"),
+        ({"noise": "split"}, r"noise must be one of \['separate', 'shared'\]; got 'split'"),
         ({"standardize": "yes"}, "standardize must be True or False; got 'yes'"),
     ],
 )

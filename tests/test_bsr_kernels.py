@@ -11,14 +11,25 @@ from scipy.special import expit
 from bsrbench.models import _bsr_kernels as kern
 
 
-def _problem(seed, N=7, K=5, Mx=4, My=3, a=3.0, b=3.0):
+def _problem(seed, N=7, K=5, Mx=4, My=3, a=3.0, b=3.0, **model):
+    """A state and data drawn from the prior; ``model``: a_xy, b_xy, w_mean, noise (BSRHyper fields)."""
     rng = np.random.default_rng(seed)
     Yk = rng.standard_normal((N, 2))
     Sigma, eta = kern.logit_prior_cov(Yk)
     Lw, _ = kern.cholesky_with_jitter(Sigma, eta)
-    state, V = kern.draw_from_prior(N, K, Mx, My, Sigma, Lw, a, b, rng)
+    hyper = kern.BSRHyper(a, b, **model)
+    state, V = kern.draw_from_prior(N, K, Mx, My, Sigma, Lw, a, b, rng, hyper)
     data = kern.BSRData(V=V, Mx=Mx, Sigma=Sigma, Lw=Lw)
-    return state, data, kern.BSRHyper(a, b)
+    return state, data, hyper
+
+
+# model variants beyond the paper's: a noise prior of its own, separate noise precisions, a logit prior mean
+MODEL_VARIANTS = {
+    "paper": {},
+    "noise-prior": {"a_xy": 1.5, "b_xy": 0.5},
+    "separate": {"noise": "separate", "a_xy": 2.0, "b_xy": 1.0},
+    "w-mean": {"w_mean": -1.0},
+}
 
 
 def _copy(state):
@@ -81,41 +92,107 @@ def test_atoms_blocked_solves_large_k():
     _assert_states_close(s1, s2)
 
 
-def test_precisions_match_naive():
-    s, data, h = _problem(5)
+@pytest.mark.parametrize("variant", ["paper", "noise-prior", "separate"])
+@pytest.mark.parametrize("My", [3, 0])
+def test_precisions_match_naive(variant, My):
+    s, data, h = _problem(5, My=My, **MODEL_VARIANTS[variant])
     p1, p2 = s.prec.copy(), s.prec.copy()
-    kern.update_precisions(s.R, s.D, s.S, p1, data.Mx, h.a0, h.b0, np.random.default_rng(1))
-    naive.update_precisions(s.R, s.D, s.S, p2, data.Mx, h.a0, h.b0, np.random.default_rng(1))
+    a_xy, b_xy = h.noise_ab
+    sep = h.noise == "separate"
+    kern.update_precisions(s.R, s.D, s.S, p1, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep)
+    naive.update_precisions(s.R, s.D, s.S, p2, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep)
     np.testing.assert_allclose(p1, p2, rtol=1e-12)
-    assert not np.allclose(p1, s.prec)
+    assert not np.allclose(p1[:2], s.prec[:2])
+    if sep and My:
+        assert p1[4] != p1[5] and p1[1] == pytest.approx(data.V.shape[1] / (4 / p1[4] + My / p1[5]))
+    elif sep:  # no output rows: g_ny is not drawn, the pooled precision is g_nx
+        assert p1[1] == p1[4] and p1[5] == s.prec[5]
+    else:
+        assert p1[1] == p1[4] == p1[5]
 
 
-@pytest.mark.parametrize("paper", [False, True])
-def test_w_mh_matches_naive(paper):
+def test_precisions_reject_a_short_prec_array():
+    s, data, h = _problem(5)
+    with pytest.raises(ValueError, match="prec must have 6 entries"):
+        kern.update_precisions(s.R, s.D, s.S, s.prec[:4].copy(), data.Mx, h.a0, h.b0, np.random.default_rng(1))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_codes_separate_noise_match_naive(seed):
+    """The rescaled-copy kernel against the weighted inner products written out."""
+    s1, data, _ = _problem(seed, **MODEL_VARIANTS["separate"])
+    s2 = _copy(s1)
+    p = s1.prec
+    kern.update_codes_separate(s1.R, s1.D, s1.B, s1.S, s1.W, p[0], p[4], p[5], data.Mx,
+                               np.random.default_rng(seed + 10))
+    naive.update_codes_separate(s2.R, s2.D, s2.B, s2.S, s2.W, p[0], p[4], p[5], data.Mx,
+                                np.random.default_rng(seed + 10))
+    _assert_states_close(s1, s2)
+    np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_atoms_separate_noise_match_naive(single):
+    s1, data, _ = _problem(3, **MODEL_VARIANTS["separate"])
+    s2 = _copy(s1)
+    p = s1.prec
+    if single:
+        kern.update_atoms_single(s1.R, s1.D, s1.norms, s1.B, s1.S, p[4], p[2], p[3], data.Mx,
+                                 np.random.default_rng(5), p[5])
+        naive.update_atoms_single(s2.R, s2.D, s2.norms, s2.B, s2.S, p[4], p[2], p[3], data.Mx,
+                                  np.random.default_rng(5), p[5])
+    else:
+        kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[4], p[2], p[3], data.Mx,
+                          np.random.default_rng(5), p[5])
+        naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[4], p[2], p[3], data.Mx,
+                           np.random.default_rng(5), p[5])
+    _assert_states_close(s1, s2)
+
+
+@pytest.mark.parametrize("ratio", ["exact", "printed", "literal"])
+@pytest.mark.parametrize("w_mean", [0.0, -1.5])
+def test_w_mh_matches_naive(ratio, w_mean):
     s, data, _ = _problem(6, N=6, K=40)
-    W1, W2 = s.W.copy(), s.W.copy()
-    a1 = kern.update_w_mh(W1, s.B, data.Sigma, data.Lw, np.random.default_rng(2), paper)
-    a2 = naive.update_w_mh(W2, s.B, data.Sigma, data.Lw, np.random.default_rng(2), paper)
+    W1 = s.W + w_mean
+    W2 = W1.copy()
+    code = {"exact": kern.MH_EXACT, "printed": kern.MH_PRINTED_RATIO, "literal": kern.MH_LITERAL}[ratio]
+    a1 = kern.update_w_mh(W1, s.B, data.Sigma, data.Lw, np.random.default_rng(2), code, w_mean)
+    a2 = naive.update_w_mh(W2, s.B, data.Sigma, data.Lw, np.random.default_rng(2), ratio, w_mean)
     assert a1 == a2
     assert 0 < a1 < 40  # both branches exercised
     np.testing.assert_allclose(W1, W2, rtol=1e-9, atol=1e-12)
+    # the accepted count is the number of logit vectors that changed
+    assert a1 == np.count_nonzero(np.any(W1 != s.W + w_mean, axis=0))
 
 
-def test_w_ess_matches_naive():
+@pytest.mark.parametrize("w_mean", [0.0, -1.5])
+def test_w_ess_matches_naive(w_mean):
     s, data, _ = _problem(7, N=6, K=30)
-    W1, W2 = s.W.copy(), s.W.copy()
-    kern.update_w_ess(W1, s.B, data.Lw, np.random.default_rng(3))
-    naive.update_w_ess(W2, s.B, data.Lw, np.random.default_rng(3))
+    W1 = s.W + w_mean
+    W2 = W1.copy()
+    m1 = kern.update_w_ess(W1, s.B, data.Lw, np.random.default_rng(3), w_mean)
+    m2 = naive.update_w_ess(W2, s.B, data.Lw, np.random.default_rng(3), w_mean)
     np.testing.assert_allclose(W1, W2, rtol=1e-9, atol=1e-12)
-    assert not np.allclose(W1, s.W)
+    assert m1 == m2 == np.count_nonzero(np.any(W1 != s.W + w_mean, axis=0)) == 30
 
 
 @pytest.mark.parametrize(
     "w_update, atom_update",
-    [("mh", "block"), ("ess", "block"), ("paper-as-printed", "block"), ("ess", "single"), ("mh", "single")],
+    [("mh", "block"), ("ess", "block"), ("paper-printed-ratio", "block"), ("paper-literal", "block"),
+     ("ess", "single"), ("mh", "single")],
 )
 def test_sweeps_match_naive(w_update, atom_update):
-    s1, data, h = _problem(8)
+    _sweeps_match(_problem(8), w_update, atom_update)
+
+
+@pytest.mark.parametrize("variant", ["noise-prior", "separate", "w-mean"])
+@pytest.mark.parametrize("w_update, atom_update", [("ess", "block"), ("mh", "single")])
+def test_model_variant_sweeps_match_naive(variant, w_update, atom_update):
+    _sweeps_match(_problem(8, **MODEL_VARIANTS[variant]), w_update, atom_update)
+
+
+def _sweeps_match(problem, w_update, atom_update):
+    s1, data, h = problem
     s2 = _copy(s1)
     r1, r2 = np.random.default_rng(9), np.random.default_rng(9)
     for _ in range(3):
@@ -123,8 +200,8 @@ def test_sweeps_match_naive(w_update, atom_update):
         st2 = naive.gibbs_sweep(s2, data, h, r2, w_update, atom_update)
         np.testing.assert_allclose(st1, st2, rtol=1e-9)
         V1, V2 = data.V.copy(), data.V.copy()
-        kern.redraw_data(V1, s1.R, s1.D, s1.B, s1.S, s1.prec[1], r1)
-        naive.redraw_data(V2, s2.R, s2.D, s2.B, s2.S, s2.prec[1], r2)
+        kern.redraw_data(V1, s1.R, s1.D, s1.B, s1.S, s1.prec[4], r1, s1.prec[5], data.Mx)
+        naive.redraw_data(V2, s2.R, s2.D, s2.B, s2.S, s2.prec[4], r2, s2.prec[5], data.Mx)
         np.testing.assert_allclose(V1, V2, rtol=1e-10)
     _assert_states_close(s1, s2)
 
@@ -147,6 +224,48 @@ def test_predict_kernel_matches_naive():
     sub_y, _ = np.empty((1, L, My)), np.empty((1, L))
     kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, 4, seeds[2:3], sub_y, np.empty((1, L)))
     np.testing.assert_array_equal(sub_y[0], out_y[2])
+
+
+def test_predict_prior_codes_matches_naive():
+    """The paper-text prediction (codes' pattern from the logits alone, weights exactly given x_t)."""
+    rng = np.random.default_rng(12)
+    L, K, Mx, My, N, T, j = 4, 7, 5, 2, 9, 6, 3
+    Dx, Dy = rng.standard_normal((L, K, Mx)), rng.standard_normal((L, K, My))
+    Ws = rng.standard_normal((L, N, K))
+    Ws[0] -= 30.0  # sample 0: no atom on (empty active set)
+    gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
+    Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
+    nbr = kern.nearest_neighbours(Xt, Xtr, j)
+    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(321))
+    out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
+    kern.predict_kernel_prior_codes(Xt, nbr, Dx, Dy, Ws, gs, gxy, seeds, out_y, out_ll)
+    ref_y, ref_ll = naive.predict_draws_prior_codes(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 321)
+    np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
+    assert np.all(out_y[:, 0] == 0.0) and np.any(out_y[:, 1:] != 0.0)
+
+
+def test_predict_prior_codes_weights_against_exact_gaussian():
+    """Given the pattern (all atoms on: logits +40), s_t | x_t is Gaussian: the mean of many draws of D^y alpha_t
+    equals D^y P^-1 g_xy D^x x_t and their covariance D^y P^-1 D^y^T (P = g_s I + g_xy D^x D^x^T)."""
+    rng = np.random.default_rng(13)
+    K, Mx, My, n = 3, 4, 2, 40000
+    Dx1, Dy1 = rng.standard_normal((K, Mx)), rng.standard_normal((K, My))
+    g_s, g_xy = 0.7, 2.5
+    Dx, Dy = np.broadcast_to(Dx1, (n, K, Mx)).copy(), np.broadcast_to(Dy1, (n, K, My)).copy()
+    Ws = np.full((n, 1, K), 40.0)
+    x = rng.standard_normal((1, Mx))
+    out_y, out_ll = np.empty((1, n, My)), np.empty((1, n))
+    kern.predict_kernel_prior_codes(x, np.zeros((1, 1), dtype=np.int64), Dx, Dy, Ws, np.full(n, g_s),
+                                    np.full(n, g_xy), np.array([5], dtype=np.uint64), out_y, out_ll)
+    P = g_s * np.eye(K) + g_xy * Dx1 @ Dx1.T
+    Pi = np.linalg.inv(P)
+    mean = Dy1.T @ Pi @ (g_xy * Dx1 @ x[0])
+    cov = Dy1.T @ Pi @ Dy1
+    draws = out_y[0]
+    diff = draws.mean(axis=0) - mean
+    assert diff @ np.linalg.solve(cov / n, diff) < stats.chi2.ppf(1 - 1e-3, My)
+    np.testing.assert_allclose(np.cov(draws.T), cov, rtol=0.05, atol=0.02 * np.abs(cov).max())
 
 
 def test_vectorizable_log_sigmoid_sum_is_exact():
@@ -241,41 +360,102 @@ def test_code_pair_against_grid():
     np.testing.assert_allclose(R, v - (B * S) * d[None, :], atol=1e-12)
 
 
-def test_g_xy_against_grid():
-    """g_xy | - ∝ Gamma(g; a, b) prod N(r; 0, 1/g) on a grid, vs repeated kernel draws."""
-    s, data, h = _problem(23, N=4, K=3, Mx=2, My=2)
+# precision (index in prec) -> the Gaussian factors it scales, written from the joint density
+_PREC_FACTORS = {
+    "g_s": (0, lambda s, Mx: s.S),
+    "g_xy": (1, lambda s, Mx: s.R),
+    "g_x": (2, lambda s, Mx: s.D[:, :Mx]),
+    "g_y": (3, lambda s, Mx: s.D[:, Mx:]),
+    "g_nx": (4, lambda s, Mx: s.R[:, :Mx]),
+    "g_ny": (5, lambda s, Mx: s.R[:, Mx:]),
+}
+
+
+@pytest.mark.parametrize(
+    "name, variant",
+    [("g_s", "paper"), ("g_x", "paper"), ("g_y", "paper"), ("g_xy", "paper"), ("g_xy", "noise-prior"),
+     ("g_nx", "separate"), ("g_ny", "separate")],
+)
+def test_precision_against_grid(name, variant):
+    """Each precision's conditional ∝ Gamma(g; a, b) prod_j N(u_j; 0, 1/g) over the values u it scales (all N K
+    weights s for g_s, the atoms' feature / output parts for g_x / g_y, the residuals for the noise precisions,
+    with the noise prior (a_xy, b_xy) and split by rows under separate noise), on a grid vs repeated kernel
+    draws."""
+    s, data, h = _problem(23, N=4, K=3, Mx=2, My=2, a=2.0, b=1.5, **MODEL_VARIANTS[variant])
+    idx, values = _PREC_FACTORS[name]
+    a, b = h.noise_ab if idx in (1, 4, 5) else (h.a0, h.b0)
     rng = np.random.default_rng(24)
     draws = np.empty(20000)
     prec = s.prec.copy()
     for t in range(draws.size):
-        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng)
-        draws[t] = prec[1]
-    rr, n = np.sum(s.R**2), s.R.size
-    grid = np.linspace(1e-6, draws.max() * 3, 40001)
-    logd = (h.a0 - 1) * np.log(grid) - h.b0 * grid + 0.5 * n * np.log(grid) - 0.5 * grid * rr
+        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng, *h.noise_ab, h.noise == "separate")
+        draws[t] = prec[idx]
+    u = values(s, data.Mx)
+    uu, n = np.sum(u**2), u.size
+    grid = np.linspace(1e-9, draws.max() * 3, 40001)
+    logd = (a - 1) * np.log(grid) - b * grid + 0.5 * n * np.log(grid) - 0.5 * grid * uu
     assert stats.kstest(draws, _grid_cdf(grid, logd)).pvalue > 1e-3
 
 
+def test_code_pair_separate_noise_against_grid():
+    """(b, s) under separate noise precisions: p(b, s | -) ∝ sig(z w) N(s; 0, 1/g_s) N(x; d^x b s, 1/g_nx I)
+    N(y; d^y b s, 1/g_ny I), vs repeated kernel draws."""
+    rng = np.random.default_rng(31)
+    Mx, My, n_rep = 3, 2, 40000
+    d = rng.standard_normal(Mx + My) * 0.6
+    v = 0.8 * d + 0.3 * rng.standard_normal(Mx + My)
+    w, g_s, g_nx, g_ny = 0.3, 1.5, 0.6, 6.0
+    R = np.tile(v, (n_rep, 1))
+    B = np.zeros((n_rep, 1), dtype=np.int8)
+    S = np.zeros((n_rep, 1))
+    kern.update_codes_separate(R, d[None, :].copy(), B, S, np.full((n_rep, 1), w), g_s, g_nx, g_ny, Mx,
+                               np.random.default_rng(32))
+    grid = np.linspace(-6, 6, 20001)
+    c = np.where(np.arange(Mx + My) < Mx, g_nx, g_ny)
+
+    def log_joint(b, s):
+        resid = v[None, :] - b * s[:, None] * d[None, :]
+        return np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 - 0.5 * np.sum(c * resid**2, axis=1)
+
+    l1, l0 = log_joint(1, grid), log_joint(0, grid)
+    m = max(l1.max(), l0.max())
+    i1, i0 = np.trapezoid(np.exp(l1 - m), grid), np.trapezoid(np.exp(l0 - m), grid)
+    p1 = i1 / (i1 + i0)
+    on = B[:, 0] == 1
+    assert 0.1 < p1 < 0.9
+    assert stats.binomtest(int(on.sum()), n_rep, p1).pvalue > 1e-3
+    assert stats.kstest(S[on, 0], _grid_cdf(grid, l1)).pvalue > 1e-3
+    assert stats.kstest(S[~on, 0], _grid_cdf(grid, l0)).pvalue > 1e-3
+    np.testing.assert_allclose(R, v - (B * S) * d[None, :], atol=1e-12)
+
+
 @pytest.mark.parametrize("atom_update", ["block", "single"])
-def test_atom_rows_against_grid(atom_update):
-    """Two atoms, one feature row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square).
-    The block update draws it exactly; one-at-a-time updates are a Gibbs chain on it (thinned by 5)."""
+@pytest.mark.parametrize("row", ["feature", "output-separate-noise"])
+def test_atom_rows_against_grid(atom_update, row):
+    """Two atoms, one row: the 2-D conditional of (d_1m, d_2m) on a grid vs kernel draws (chi-square).
+    The block update draws it exactly; one-at-a-time updates are a Gibbs chain on it (thinned by 5). A feature
+    row uses (g_xy, g_x); an output row under separate noise precisions uses (g_ny, g_y), and must ignore the
+    feature rows' g_nx and g_x (set to wrong values here)."""
     rng = np.random.default_rng(25)
-    N, K, Mx = 6, 2, 1
+    N, K = 6, 2
     B = np.ones((N, K), dtype=np.int8)
     S = rng.standard_normal((N, K))
-    V = rng.standard_normal((N, Mx))
-    g_xy, g_x = 1.7, 0.9
+    V = rng.standard_normal((N, 1))
+    g_xy, g_x = 1.7, 0.9  # the row's noise and atom precisions
+    if row == "feature":
+        Mx, args, g_ny = 1, (g_xy, g_x, 1.0), -1.0
+    else:
+        Mx, args, g_ny = 0, (50.0, 20.0, g_x), g_xy
     n_rep = 30000
     draws = np.empty((n_rep, K))
-    D = np.zeros((K, Mx))
+    D = np.zeros((K, 1))
     R, norms = V.copy(), np.zeros(K)
     for t in range(n_rep):
         if atom_update == "block":
-            kern.update_atoms(V, R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+            kern.update_atoms(V, R, D, norms, B, S, *args, Mx, rng, g_ny)
         else:
             for _ in range(5):
-                kern.update_atoms_single(R, D, norms, B, S, g_xy, g_x, 1.0, Mx, rng)
+                kern.update_atoms_single(R, D, norms, B, S, *args, Mx, rng, g_ny)
         draws[t] = D[:, 0]
     A = B * S
     lim = 1.2 * np.abs(draws).max()
@@ -300,30 +480,32 @@ def test_atom_rows_against_grid(atom_update):
 
 
 @pytest.mark.parametrize("w_update", ["mh", "ess"])
-def test_w_update_leaves_target_invariant(w_update):
+@pytest.mark.parametrize("w_mean", [0.0, -2.0])
+def test_w_update_leaves_target_invariant(w_update, w_mean):
     """Exact draws of w_k (rejection from the prior) stay exact after one update: marginal of w_1 vs a grid.
 
-    Target: N(w; 0, Sigma) prod_i sig(z_i w_i), N = 2, many independent atoms at once.
+    Target: N(w; m 1, Sigma) prod_i sig(z_i w_i), N = 2, many independent atoms at once.
     """
     rng = np.random.default_rng(26)
     Sigma = np.array([[4.0, 2.0], [2.0, 4.0]])
     Lw = np.linalg.cholesky(Sigma)
     z = np.array([1.0, -1.0])
     K = 30000
-    prop = Lw @ rng.standard_normal((2, 8 * K))
+    prop = Lw @ rng.standard_normal((2, 8 * K)) + w_mean
     keep = rng.random(8 * K) < np.prod(expit(z[:, None] * prop), axis=0)
     W = np.ascontiguousarray(prop[:, keep][:, :K])
     assert W.shape == (2, K)
     B = np.tile((z > 0).astype(np.int8)[:, None], (1, K))
     if w_update == "mh":
-        acc = kern.update_w_mh(W, B, Sigma, Lw, rng, False)
+        acc = kern.update_w_mh(W, B, Sigma, Lw, rng, kern.MH_EXACT, w_mean)
         assert 0.05 * K < acc < K
     else:
-        kern.update_w_ess(W, B, Lw, rng)
+        kern.update_w_ess(W, B, Lw, rng, w_mean)
     g = np.linspace(-15, 15, 1201)
     w1, w2 = np.meshgrid(g, g, indexing="ij")
     Si = np.linalg.inv(Sigma)
-    logd = (-0.5 * (Si[0, 0] * w1**2 + 2 * Si[0, 1] * w1 * w2 + Si[1, 1] * w2**2)
+    u1, u2 = w1 - w_mean, w2 - w_mean
+    logd = (-0.5 * (Si[0, 0] * u1**2 + 2 * Si[0, 1] * u1 * u2 + Si[1, 1] * u2**2)
             + np.log(expit(z[0] * w1)) + np.log(expit(z[1] * w2)))
     dens = np.exp(logd - logd.max())
     marg = np.log(dens.sum(axis=1))

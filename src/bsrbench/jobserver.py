@@ -382,6 +382,8 @@ def _warm_numba():
         BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0).fit(X, Y).predict(X[:2])
         BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, w_update="mh", atom_update="single",
                    random_state=0).fit(X, Y)
+        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, noise="separate", w_prior_mean=-1.0,
+                   prediction="paper-text", random_state=0).fit(X, Y).predict(X[:2])
     except Exception:  # noqa: BLE001 - warming is an optimization only
         traceback.print_exc()
 

@@ -16,7 +16,10 @@ Layout (all C-contiguous float64 unless noted):
 - ``B`` (N, K) int8 and ``S`` (N, K): codes ``alpha_ki = B[i, k] * S[i, k]``.
 - ``R`` (N, M): the residual ``V - A^T D``, updated in place by the code update.
 - ``W`` (N, K): the logits ``w_ik``; atom k's logit vector is the column ``W[:, k]``.
-- ``prec`` (4,): ``[g_s, g_xy, g_x, g_y]``.
+- ``prec`` (6,): ``[g_s, g_xy, g_x, g_y, g_nx, g_ny]``: the noise precisions of the feature rows (g_nx) and of
+  the output rows (g_ny). With one shared noise precision (the paper) g_nx = g_ny = g_xy; with separate noise
+  precisions (a model extension) g_xy holds the pooled precision ``M / (Mx / g_nx + My / g_ny)`` (the inverse
+  of the mean noise variance over all M rows), a summary comparable with the shared g_xy.
 - ``Sigma`` (N, N) and its lower Cholesky factor ``Lw``.
 
 Every random draw comes from the ``numpy.random.Generator`` passed in (numba shares its bit generator with
@@ -37,7 +40,11 @@ from ..errors import InputError, SamplerError
 # Vectorizable reductions: reassociation and FMA contraction only (no nnan/ninf: the MH step uses -inf).
 _VEC = {"reassoc", "contract"}
 
-W_UPDATES = {"mh": 0, "ess": 1, "paper-as-printed": 2}
+W_UPDATES = {"mh": 0, "ess": 1, "paper-printed-ratio": 2, "paper-literal": 3}
+# the acceptance ratio of update_w_mh: exact; the paper's printed ratio with the tight bound lambda = sigmoid(-z w);
+# the paper's printed ratio with lambda = sigmoid(+z w) as its appendix prints it
+MH_EXACT, MH_PRINTED_RATIO, MH_LITERAL = 0, 1, 2
+NOISE_MODELS = {"shared": 0, "separate": 1}
 ATOM_UPDATES = {"block": 0, "single": 1}
 
 # Test points whose code sweeps are interleaved atom by atom in prediction.
@@ -232,14 +239,48 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
 
 
 @njit(cache=True)
-def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
+def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
+    """The (b, s) block update with separate noise precisions g_nx (feature rows) and g_ny (output rows).
+
+    Then ``tau = g_s + g_nx ||d^x_k||^2 + g_ny ||d^y_k||^2`` and
+    ``mu = (g_nx d^x_k . r^x_i^(-k) + g_ny d^y_k . r^y_i^(-k)) / tau``; the logit and the draws have the form of
+    :func:`update_codes`. Both depend on D and R only through these weighted inner products, so the update is
+    :func:`update_codes` with g_xy = 1 on copies of D and R whose feature columns are scaled by sqrt(g_nx) and
+    output columns by sqrt(g_ny) (same draws, same order); R is scaled back in place afterwards.
+    """
+    K, M = D.shape
+    N = R.shape[0]
+    scale = np.empty(M)
+    for m in range(M):
+        scale[m] = np.sqrt(g_nx) if m < Mx else np.sqrt(g_ny)
+    Ds = np.empty((K, M))
+    for k in range(K):
+        for m in range(M):
+            Ds[k, m] = D[k, m] * scale[m]
+    for i in range(N):
+        for m in range(M):
+            R[i, m] *= scale[m]
+    norms_s = np.empty(K)
+    _row_norms(Ds, norms_s)
+    update_codes(R, Ds, norms_s, B, S, W, g_s, 1.0, rng)
+    for i in range(N):
+        for m in range(M):
+            R[i, m] /= scale[m]
+
+
+@njit(cache=True)
+def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     """Draw all atoms given the codes, then recompute the residual.
 
     Given the codes the rows of D^x are independent with the common K x K precision
     ``P = g_x I + g_xy A A^T`` (A = codes, K x N): ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with
     ``P = U^T U``; likewise D^y with g_y. One Cholesky per dictionary and sweep. Draw order: one
-    (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y).
+    (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y). With separate noise
+    precisions, ``g_xy`` is the feature rows' g_nx and ``g_ny`` (>= 0) the output rows' (it replaces g_xy in
+    D^y's precision and mean); the default ``g_ny = -1`` means one shared g_xy.
     """
+    if g_ny < 0.0:
+        g_ny = g_xy
     K, M = D.shape
     A = _codes_from(B, S)
     G = A.T @ A
@@ -247,16 +288,16 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
     E = rng.standard_normal((K, M))
     for part in range(2):
         if part == 0:
-            lo, hi, g = 0, Mx, g_x
+            lo, hi, g, gn = 0, Mx, g_x, g_xy
         else:
-            lo, hi, g = Mx, M, g_y
+            lo, hi, g, gn = Mx, M, g_y, g_ny
         if hi == lo:
             continue
-        P = g_xy * G
+        P = gn * G
         for k in range(K):
             P[k, k] += g
         Lc = np.linalg.cholesky(P)
-        Z = np.ascontiguousarray(AV[:, lo:hi]) * g_xy
+        Z = np.ascontiguousarray(AV[:, lo:hi]) * gn
         _forward_solve(Lc, Z)
         Z += E[:, lo:hi]
         _backward_solve_t(Lc, Z)
@@ -266,15 +307,17 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
 
 
 @njit(cache=True, fastmath=_VEC, error_model="numpy")
-def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
+def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     """Draw the atoms one at a time (the paper's Gibbs scheme, with the corrected precision), in place.
 
     ``d^x_k | rest ~ N(g_xy sum_i alpha_ki x_i^(-k) / p, I / p)`` with ``p = g_x + g_xy sum_i alpha_ki^2``
     (likewise ``d^y_k`` with g_y); then ``r_i -= alpha_ki (d_k' - d_k)`` for the points that use atom k.
     O(nnz_k M) per atom, O(N K M) at most per sweep, against O(K^2 (N + M) + K^3) for the block update; the
     block update mixes better per sweep when atoms are correlated. Draw order: one (K, M) array of standard
-    normals E, row k for atom k (as in update_atoms).
+    normals E, row k for atom k (as in update_atoms). ``g_ny`` as in :func:`update_atoms`.
     """
+    if g_ny < 0.0:
+        g_ny = g_xy
     N, K = B.shape
     M = D.shape[1]
     E = rng.standard_normal((K, M))
@@ -298,9 +341,9 @@ def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng):
             for m in range(M):
                 acc[m] += ai * R[i, m]
         px = g_x + g_xy * sa2
-        py = g_y + g_xy * sa2
+        py = g_y + g_ny * sa2
         cx, sx = g_xy / px, 1.0 / np.sqrt(px)
-        cy, sy = g_xy / py, 1.0 / np.sqrt(py)
+        cy, sy = g_ny / py, 1.0 / np.sqrt(py)
         for m in range(Mx):
             new = cx * acc[m] + sx * E[k, m]
             delta[m] = new - D[k, m]
@@ -325,17 +368,27 @@ def _sum_sq(a):
 
 
 @njit(cache=True)
-def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
-    """Gamma conditionals of g_s, g_xy, g_x, g_y (shape/rate; drawn in this order).
+def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, separate=False):
+    """Gamma conditionals of the precisions (shape/rate), drawn in the order g_s, noise, g_x, g_y.
 
     g_s ~ Gamma(a + NK/2, b + sum s^2 / 2) over all N K weights (active or not);
-    g_xy ~ Gamma(a + NM/2, b + ||R||^2 / 2); g_x ~ Gamma(a + Mx K/2, b + ||D^x||^2 / 2); g_y likewise.
+    g_xy ~ Gamma(a_xy + NM/2, b_xy + ||R||^2 / 2); g_x ~ Gamma(a + Mx K/2, b + ||D^x||^2 / 2); g_y likewise.
+    ``a_xy``, ``b_xy``: the noise precision's own Gamma prior (negative: a0, b0). With ``separate`` noise
+    precisions the noise draw is two draws, g_nx ~ Gamma(a_xy + N Mx/2, b_xy + ||R^x||^2 / 2) then
+    g_ny ~ Gamma(a_xy + N My/2, b_xy + ||R^y||^2 / 2), and prec[1] becomes the pooled
+    ``M / (Mx / g_nx + My / g_ny)``; with a shared one prec[4] = prec[5] = g_xy. ``prec`` has 6 entries
+    (module docstring).
     """
+    if prec.shape[0] != 6:
+        raise ValueError("prec must have 6 entries: g_s, g_xy, g_x, g_y, g_nx, g_ny")
+    if a_xy < 0.0:
+        a_xy = a0
+    if b_xy < 0.0:
+        b_xy = b0
     N, K = S.shape
     M = D.shape[1]
     My = M - Mx
     ss = _sum_sq(S)
-    rr = _sum_sq(R)
     dx = 0.0
     dy = 0.0
     for k in range(K):
@@ -344,7 +397,25 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng):
         for m in range(Mx, M):
             dy += D[k, m] * D[k, m]
     prec[0] = rng.gamma(a0 + 0.5 * N * K, 1.0 / (b0 + 0.5 * ss))
-    prec[1] = rng.gamma(a0 + 0.5 * N * M, 1.0 / (b0 + 0.5 * rr))
+    if separate:
+        rx = 0.0
+        ry = 0.0
+        for i in range(N):
+            for m in range(Mx):
+                rx += R[i, m] * R[i, m]
+            for m in range(Mx, M):
+                ry += R[i, m] * R[i, m]
+        prec[4] = rng.gamma(a_xy + 0.5 * N * Mx, 1.0 / (b_xy + 0.5 * rx))
+        if My > 0:
+            prec[5] = rng.gamma(a_xy + 0.5 * N * My, 1.0 / (b_xy + 0.5 * ry))
+            prec[1] = M / (Mx / prec[4] + My / prec[5])
+        else:
+            prec[1] = prec[4]
+    else:
+        rr = _sum_sq(R)
+        prec[1] = rng.gamma(a_xy + 0.5 * N * M, 1.0 / (b_xy + 0.5 * rr))
+        prec[4] = prec[1]
+        prec[5] = prec[1]
     prec[2] = rng.gamma(a0 + 0.5 * Mx * K, 1.0 / (b0 + 0.5 * dx))
     if My > 0:
         prec[3] = rng.gamma(a0 + 0.5 * My * K, 1.0 / (b0 + 0.5 * dy))
@@ -426,43 +497,56 @@ def _sum_log_sigmoid(z, w):
 
 
 @njit(cache=True, fastmath=_VEC, error_model="numpy")
-def _bound_terms(Zt, Wt, Lam, Sig):
+def _bound_terms(Zt, Wt, Lam, Sig, literal=False):
     """Lam = z sigmoid(-z w) (the gradient of log sigmoid(z w): the tight bound's Lambda) and
-    Sig = sigmoid(z w), elementwise over (K, N) arrays. NumPy's error model: numba's default checks every
+    Sig = sigmoid(z w), elementwise over (K, N) arrays. With ``literal``, Lam = z sigmoid(+z w), the lambda
+    the paper's appendix prints (not the tight bound). NumPy's error model: numba's default checks every
     float division for zero (1 + e > 0 here), and that branch keeps the loop from vectorizing."""
     K, N = Wt.shape
-    for k in range(K):
-        for i in range(N):
-            sg, sm = _sig_pair(Zt[k, i] * Wt[k, i])
-            Sig[k, i] = sg
-            Lam[k, i] = Zt[k, i] * sm
+    if literal:
+        for k in range(K):
+            for i in range(N):
+                sg, sm = _sig_pair(Zt[k, i] * Wt[k, i])
+                Sig[k, i] = sg
+                Lam[k, i] = Zt[k, i] * sg
+    else:
+        for k in range(K):
+            for i in range(N):
+                sg, sm = _sig_pair(Zt[k, i] * Wt[k, i])
+                Sig[k, i] = sg
+                Lam[k, i] = Zt[k, i] * sm
 
 
 @njit(cache=True)
-def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
+def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     """Metropolis-Hastings update of every logit vector w_k with the bound-based proposal.
 
-    Proposal (paper, Appendix A, with the tight bound lambda_i = sigmoid(-z_i w_i)):
-    ``w' ~ N(mu, Sigma)``, ``mu = Sigma Lambda(w)``, drawn as ``mu + Lw eps``. The correct log acceptance
-    ratio (the proposal depends on w, so it is not an independence chain) is
-    ``sum_i [log sig(z_i w'_i) - log sig(z_i w_i)] + w . Lambda' - w' . Lambda + (Lambda . mu - Lambda' . mu')/2``.
-    With ``paper_as_printed`` the paper's printed ratio ``sum_i [...] - Lambda . (w' - w)`` is used instead
-    (wrong target; an ablation only). All K atoms are batched as matrix products (Sigma is symmetric, so
-    atom-major (K, N) arrays are multiplied from the right). Draw order: a (K, N) array of standard normals
-    (row k for atom k), then K uniforms. Returns the number of accepted atoms.
+    Prior ``w_k ~ N(m 1, Sigma)`` (m = ``w_mean``, 0 in the paper). Proposal (paper, Appendix A, with the tight
+    bound lambda_i = sigmoid(-z_i w_i)): ``w' ~ N(m + mu, Sigma)``, ``mu = Sigma Lambda(w)``, drawn as
+    ``m + mu + Lw eps``. The correct log acceptance ratio (the proposal depends on w, so it is not an
+    independence chain) is, with u = w - m and u' = w' - m,
+    ``sum_i [log sig(z_i w'_i) - log sig(z_i w_i)] + u . Lambda' - u' . Lambda + (Lambda . mu - Lambda' . mu')/2``.
+    ``ratio`` selects it (MH_EXACT) or one of two wrong-target ablations: MH_PRINTED_RATIO, the paper's printed
+    ratio ``sum_i [...] - Lambda . (w' - w)`` with the tight lambda; MH_LITERAL, the printed ratio and
+    lambda_i = sigmoid(+z_i w_i) exactly as the appendix prints it. All K atoms are batched as matrix products
+    (Sigma is symmetric, so atom-major (K, N) arrays are multiplied from the right). Draw order: a (K, N) array
+    of standard normals (row k for atom k), then K uniforms. Returns the number of accepted atoms.
     """
     N, K = W.shape
+    exact = ratio == MH_EXACT
     Zt = _signs_t(B)
     Wt = np.ascontiguousarray(W.T)
     Lam = np.empty((K, N))
     Sig = np.empty((K, N))
-    _bound_terms(Zt, Wt, Lam, Sig)
+    _bound_terms(Zt, Wt, Lam, Sig, ratio == MH_LITERAL)
     Mu = Lam @ Sigma
     Wp = Mu + rng.standard_normal((K, N)) @ Lw.T
+    if w_mean != 0.0:
+        Wp += w_mean
     Lamp = np.empty((K, N))
     Sigp = np.empty((K, N))
-    _bound_terms(Zt, Wp, Lamp, Sigp)
-    Mup = Mu if paper_as_printed else Lamp @ Sigma
+    _bound_terms(Zt, Wp, Lamp, Sigp, ratio == MH_LITERAL)
+    Mup = Lamp @ Sigma if exact else Mu
     U = rng.random(K)
     accepted = 0
     for k in range(K):
@@ -481,11 +565,11 @@ def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
                     cnt = 0
             else:
                 lr += _log_sigmoid(Zt[k, i] * Wp[k, i]) - _log_sigmoid(Zt[k, i] * Wt[k, i])
-            if paper_as_printed:
-                lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
-            else:
-                lr += (Wt[k, i] * Lamp[k, i] - Wp[k, i] * Lam[k, i]
+            if exact:
+                lr += ((Wt[k, i] - w_mean) * Lamp[k, i] - (Wp[k, i] - w_mean) * Lam[k, i]
                        + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i]))
+            else:
+                lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
         lr += np.log(prod)
         if np.log(U[k]) < lr:
             accepted += 1
@@ -495,12 +579,14 @@ def update_w_mh(W, B, Sigma, Lw, rng, paper_as_printed=False):
 
 
 @njit(cache=True)
-def update_w_ess(W, B, Lw, rng):
-    """Elliptical slice sampling (Murray, Adams & MacKay 2010) of every w_k, prior N(0, Sigma = Lw Lw^T).
+def update_w_ess(W, B, Lw, rng, w_mean=0.0):
+    """Elliptical slice sampling (Murray, Adams & MacKay 2010) of every w_k, prior N(m 1, Sigma = Lw Lw^T).
 
-    Draw order: one (K, N) array of standard normals (row k gives atom k's ellipse ``nu = Lw eps_k``); then
-    per atom k: one uniform for the slice height, one for the initial angle, one per shrinkage step.
-    Returns K (every update moves).
+    With a prior mean m (``w_mean``) the ellipse is drawn for u = w - m, whose prior is N(0, Sigma) (Murray
+    et al., Sec. 2): ``u' = u cos(theta) + nu sin(theta)``, ``w' = u' + m``. Draw order: one (K, N) array of
+    standard normals (row k gives atom k's ellipse ``nu = Lw eps_k``); then per atom k: one uniform for the
+    slice height, one for the initial angle, one per shrinkage step. Returns the number of logit vectors that
+    moved (K unless the shrinkage guard was hit or the new point equals the old one).
     """
     N, K = W.shape
     Zt = _signs_t(B)
@@ -508,6 +594,7 @@ def update_w_ess(W, B, Lw, rng):
     Nu = rng.standard_normal((K, N)) @ Lw.T
     wp = np.empty(N)
     two_pi = 2.0 * np.pi
+    moved = 0
     for k in range(K):
         wk = Wt[k]
         zk = Zt[k]
@@ -520,7 +607,7 @@ def update_w_ess(W, B, Lw, rng):
             c = np.cos(theta)
             sn = np.sin(theta)
             for i in range(N):
-                wp[i] = wk[i] * c + nk[i] * sn
+                wp[i] = ((wk[i] - w_mean) * c + nk[i] * sn) + w_mean
             if _sum_log_sigmoid(zk, wp) > log_y:
                 break
             if theta < 0.0:
@@ -531,9 +618,14 @@ def update_w_ess(W, B, Lw, rng):
                 wp[:] = wk
                 break
             theta = lo + rng.random() * (hi - lo)
+        changed = False
         for i in range(N):
+            if W[i, k] != wp[i]:
+                changed = True
             W[i, k] = wp[i]
-    return K
+        if changed:
+            moved += 1
+    return moved
 
 
 @njit(cache=True)
@@ -544,21 +636,51 @@ def log_likelihood(R, g_xy):
 
 
 @njit(cache=True)
-def _sweep(V, R, D, norms, B, S, W, prec, Sigma, Lw, Mx, a0, b0, w_code, atom_code, rng, stats):
+def log_likelihood_separate(R, Mx, g_nx, g_ny):
+    """log p(V | D, A, g_nx, g_ny) with precision g_nx on the feature columns and g_ny on the output columns."""
+    N, M = R.shape
+    rx = 0.0
+    ry = 0.0
+    for i in range(N):
+        for m in range(Mx):
+            rx += R[i, m] * R[i, m]
+        for m in range(Mx, M):
+            ry += R[i, m] * R[i, m]
+    ll = 0.5 * N * Mx * (np.log(g_nx) - np.log(2.0 * np.pi)) - 0.5 * g_nx * rx
+    if M > Mx:
+        ll += 0.5 * N * (M - Mx) * (np.log(g_ny) - np.log(2.0 * np.pi)) - 0.5 * g_ny * ry
+    return ll
+
+
+@njit(cache=True)
+def _sweep(V, R, D, norms, B, S, W, prec, Sigma, Lw, Mx, a0, b0, a_xy, b_xy, w_mean, separate, w_code, atom_code,
+           rng, stats):
     """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
-    ``stats = [log-likelihood, number of active atoms, fraction of accepted logit moves]``."""
-    update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
-    if atom_code == 1:
-        update_atoms_single(R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
+    ``stats = [log-likelihood, number of active atoms, fraction of moved logit vectors]`` (MH: accepted)."""
+    if separate:
+        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng)
+        g_nx, g_ny = prec[4], prec[5]
     else:
-        update_atoms(V, R, D, norms, B, S, prec[1], prec[2], prec[3], Mx, rng)
-    update_precisions(R, D, S, prec, Mx, a0, b0, rng)
+        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+        g_nx, g_ny = prec[1], prec[1]
+    if atom_code == 1:
+        update_atoms_single(R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
+    else:
+        update_atoms(V, R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
+    update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy, b_xy, separate)
     K = W.shape[1]
     if w_code == 1:
-        acc = update_w_ess(W, B, Lw, rng)
+        acc = update_w_ess(W, B, Lw, rng, w_mean)
+    elif w_code == 0:
+        acc = update_w_mh(W, B, Sigma, Lw, rng, MH_EXACT, w_mean)
+    elif w_code == 2:
+        acc = update_w_mh(W, B, Sigma, Lw, rng, MH_PRINTED_RATIO, w_mean)
     else:
-        acc = update_w_mh(W, B, Sigma, Lw, rng, w_code == 2)
-    stats[0] = log_likelihood(R, prec[1])
+        acc = update_w_mh(W, B, Sigma, Lw, rng, MH_LITERAL, w_mean)
+    if separate:
+        stats[0] = log_likelihood_separate(R, Mx, prec[4], prec[5])
+    else:
+        stats[0] = log_likelihood(R, prec[1])
     active = 0
     for k in range(K):
         for i in range(B.shape[0]):
@@ -570,12 +692,19 @@ def _sweep(V, R, D, norms, B, S, W, prec, Sigma, Lw, Mx, a0, b0, w_code, atom_co
 
 
 @njit(cache=True)
-def redraw_data(V, R, D, B, S, g_xy, rng):
-    """Replace V by a draw from the likelihood ``V = A D + E / sqrt(g_xy)`` and set R = V - A D.
+def redraw_data(V, R, D, B, S, g_xy, rng, g_ny=-1.0, Mx=0):
+    """Replace V by a draw from the likelihood ``V = A D + E`` and set R = V - A D.
 
-    Draw order: one (N, M) array of standard normals. Used by the Geweke test and for simulation.
+    E has precision g_xy on every column, or with ``g_ny >= 0`` g_xy (= g_nx) on the first ``Mx`` columns and
+    g_ny on the others. Draw order: one (N, M) array of standard normals. Used by the Geweke test and for
+    simulation.
     """
-    E = rng.standard_normal(V.shape) / np.sqrt(g_xy)
+    E = rng.standard_normal(V.shape)
+    if g_ny < 0.0:
+        E /= np.sqrt(g_xy)
+    else:
+        E[:, :Mx] /= np.sqrt(g_xy)
+        E[:, Mx:] /= np.sqrt(g_ny)
     V[:, :] = _codes_from(B, S) @ D + E
     R[:, :] = E
 
@@ -592,7 +721,7 @@ class BSRState(NamedTuple):
     S: np.ndarray
     W: np.ndarray
     R: np.ndarray
-    prec: np.ndarray  # [g_s, g_xy, g_x, g_y]
+    prec: np.ndarray  # [g_s, g_xy, g_x, g_y, g_nx, g_ny]
 
 
 class BSRData(NamedTuple):
@@ -605,41 +734,75 @@ class BSRData(NamedTuple):
 
 
 class BSRHyper(NamedTuple):
-    """Gamma(a0, b0) (shape, rate) hyper-prior of all four precisions."""
+    """The prior: Gamma(a0, b0) (shape, rate) on g_s, g_x, g_y; Gamma(a_xy, b_xy) on the noise precision(s)
+    (None: a0, b0); the prior mean ``w_mean`` of the logits; ``noise`` "shared" (one g_xy, the paper) or
+    "separate" (g_nx for the feature rows, g_ny for the output rows)."""
 
     a0: float = 1e-6
     b0: float = 1e-6
+    a_xy: float | None = None
+    b_xy: float | None = None
+    w_mean: float = 0.0
+    noise: str = "shared"
+
+    @property
+    def noise_ab(self):
+        """(shape, rate) of the noise precisions' Gamma prior."""
+        return (self.a0 if self.a_xy is None else self.a_xy), (self.b0 if self.b_xy is None else self.b_xy)
 
 
 def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
     """Run one full Gibbs sweep (a single jitted call); returns ``(state, stats)``.
 
     ``state`` is updated in place and returned; ``stats`` is ``[log-likelihood, active atoms, acceptance]``.
-    ``w_update`` is ``"mh"`` (corrected MH), ``"ess"`` (elliptical slice) or ``"paper-as-printed"``;
-    ``atom_update`` is ``"block"`` (all atoms jointly, update_atoms) or ``"single"`` (one at a time).
+    ``w_update`` is ``"mh"`` (corrected MH), ``"ess"`` (elliptical slice), ``"paper-printed-ratio"`` or
+    ``"paper-literal"`` (wrong-target ablations, see update_w_mh); ``atom_update`` is ``"block"`` (all atoms
+    jointly, update_atoms) or ``"single"`` (one at a time). ``hyper`` (BSRHyper) gives the priors and the noise
+    model.
     """
     if w_update not in W_UPDATES:
         raise InputError(f"w_update must be one of {sorted(W_UPDATES)}; got {w_update!r}")
     if atom_update not in ATOM_UPDATES:
         raise InputError(f"atom_update must be one of {sorted(ATOM_UPDATES)}; got {atom_update!r}")
+    if hyper.noise not in NOISE_MODELS:
+        raise InputError(f"noise must be one of {sorted(NOISE_MODELS)}; got {hyper.noise!r}")
+    a_xy, b_xy = hyper.noise_ab
     stats = np.zeros(3)
     _sweep(data.V, state.R, state.D, state.norms, state.B, state.S, state.W, state.prec, data.Sigma, data.Lw,
-           data.Mx, float(hyper.a0), float(hyper.b0), W_UPDATES[w_update], ATOM_UPDATES[atom_update], rng,
-           stats)
+           data.Mx, float(hyper.a0), float(hyper.b0), float(a_xy), float(b_xy), float(hyper.w_mean),
+           hyper.noise == "separate", W_UPDATES[w_update], ATOM_UPDATES[atom_update], rng, stats)
     return state, stats
 
 
-def draw_from_prior(N, K, Mx, My, Sigma, Lw, a0, b0, rng):
-    """Draw (state, V) from the joint prior (precisions, atoms, logits, codes, data). Needs proper a0, b0."""
+def draw_from_prior(N, K, Mx, My, Sigma, Lw, a0, b0, rng, hyper=None):
+    """Draw (state, V) from the joint prior (precisions, atoms, logits, codes, data). Needs proper priors.
+
+    ``hyper`` (BSRHyper, optional) overrides a0, b0 and adds the noise prior, the noise model and the logit
+    prior mean. Draw order: g_s, g_xy (g_nx when separate), g_x, g_y, [g_ny when separate], then as before.
+    """
+    hyper = BSRHyper(a0, b0) if hyper is None else hyper
+    a0, b0 = hyper.a0, hyper.b0
+    a_xy, b_xy = hyper.noise_ab
     M = Mx + My
-    prec = np.array([rng.gamma(a0, 1.0 / b0) for _ in range(4)])
+    prec = np.empty(6)
+    prec[0] = rng.gamma(a0, 1.0 / b0)
+    prec[1] = rng.gamma(a_xy, 1.0 / b_xy)
+    prec[2] = rng.gamma(a0, 1.0 / b0)
+    prec[3] = rng.gamma(a0, 1.0 / b0)
+    prec[4] = prec[5] = prec[1]
+    if hyper.noise == "separate":
+        prec[5] = rng.gamma(a_xy, 1.0 / b_xy)
+        prec[1] = M / (Mx / prec[4] + My / prec[5]) if My > 0 else prec[4]
     D = np.empty((K, M))
     D[:, :Mx] = rng.standard_normal((K, Mx)) / np.sqrt(prec[2])
     D[:, Mx:] = rng.standard_normal((K, My)) / np.sqrt(prec[3])
-    W = Lw @ rng.standard_normal((N, K))
+    W = Lw @ rng.standard_normal((N, K)) + hyper.w_mean
     B = (rng.random((N, K)) < 1.0 / (1.0 + np.exp(-W))).astype(np.int8)
     S = rng.standard_normal((N, K)) / np.sqrt(prec[0])
-    V = (B * S) @ D + rng.standard_normal((N, M)) / np.sqrt(prec[1])
+    E = rng.standard_normal((N, M))
+    E[:, :Mx] /= np.sqrt(prec[4])
+    E[:, Mx:] /= np.sqrt(prec[5])
+    V = (B * S) @ D + E
     R = V - (B * S) @ D
     state = BSRState(D=D, norms=np.einsum("km,km->k", D, D), B=B, S=S, W=W, R=R, prec=prec)
     return state, V
@@ -874,6 +1037,85 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
                             out_y[t, l, m] += a * Dy[l, k, m]
                 rr = _dot_rows(r, p, r, p, Mx)
                 out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
+
+
+@njit(cache=True)
+def predict_kernel_prior_codes(Xt, nbr, Dx, Dy, Ws, gs, gxy, seeds, out_y, out_ll):
+    """Posterior predictive draws with the codes' on/off pattern drawn from the logits alone (the paper's text).
+
+    The paper's Section "Pose Prediction" draws ``z_t ~ P(z_t | w_t)`` with ``w_t`` from the neighbours' logits
+    and weights samples by ``N(x_t; D^x alpha_t, 1/g_xy I)``. Here, for test point t and sample l:
+    ``w_t = mean_{i in J_t} W^l[i, :]``; ``z_tk ~ Bernoulli(sigmoid(w_tk))`` independently, NOT conditioned on
+    x_t; then the active weights s_A exactly from their Gaussian given x_t and z_t:
+    precision ``P = g_s I + g_xy D^x_A D^x_A^T`` (rows of D^x_A are the active atoms' feature parts), mean
+    ``g_xy P^-1 D^x_A x_t``, drawn as ``L^-T (L^-1 g_xy D^x_A x_t + eps)`` with ``P = L L^T``.
+    ``out_y[t, l] = D^y alpha_t`` and ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (the paper's weights
+    beta). Random numbers per test point on its splitmix64 stream (as predict_kernel): per sample K uniforms
+    (atom order), then one ziggurat normal per active atom (atom order). Shapes as in predict_kernel.
+    """
+    T, Mx = Xt.shape
+    L, K, _ = Dx.shape
+    My = out_y.shape[2]
+    nj = nbr.shape[1]
+    streams = seeds.copy()
+    wt = np.empty(K)
+    act = np.empty(K, dtype=np.int64)
+    for l in range(L):
+        g_s = gs[l]
+        g_xy = gxy[l]
+        Dxl = np.ascontiguousarray(Dx[l])
+        G = Dxl @ Dxl.T
+        for t in range(T):
+            for k in range(K):
+                wt[k] = 0.0
+            for q in range(nj):
+                for k in range(K):
+                    wt[k] += Ws[l, nbr[t, q], k]
+            st = streams[t]
+            na = 0
+            for k in range(K):
+                w = wt[k] / nj
+                st, u = _uniform(st)
+                if u * (1.0 + np.exp(-w)) < 1.0:  # u < sigmoid(w)
+                    act[na] = k
+                    na += 1
+            c = np.empty(na)
+            for a in range(na):
+                c[a] = g_xy * _dot_rows(Dxl, act[a], Xt, t, Mx)
+            s = np.empty(na)
+            if na > 0:
+                P = np.empty((na, na))
+                for a in range(na):
+                    for b in range(na):
+                        P[a, b] = g_xy * G[act[a], act[b]]
+                    P[a, a] += g_s
+                Lc = np.linalg.cholesky(P)
+                for a in range(na):  # forward: L c' = c
+                    acc = c[a]
+                    for b in range(a):
+                        acc -= Lc[a, b] * c[b]
+                    c[a] = acc / Lc[a, a]
+                for a in range(na):
+                    st, z = _normal(st)
+                    c[a] += z
+                for a in range(na - 1, -1, -1):  # backward: L^T s = c' + eps
+                    acc = c[a]
+                    for b in range(a + 1, na):
+                        acc -= Lc[b, a] * s[b]
+                    s[a] = acc / Lc[a, a]
+            streams[t] = st
+            for m in range(My):
+                out_y[t, l, m] = 0.0
+            rr = 0.0
+            for m in range(Mx):
+                v = Xt[t, m]
+                for a in range(na):
+                    v -= s[a] * Dxl[act[a], m]
+                rr += v * v
+            for a in range(na):
+                for m in range(My):
+                    out_y[t, l, m] += s[a] * Dy[l, act[a], m]
+            out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
 
 
 @njit(cache=True)

@@ -45,6 +45,17 @@ def _check_positive(name, value):
     return float(value)
 
 
+def _check_finite(name, value):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} must be a finite number; got {value!r}")
+    if not np.isfinite(value):
+        raise InputError(f"{name} must be a finite number; got {value!r}")
+    return float(value)
+
+
+PREDICTIONS = ("conditional", "paper-text")
+
+
 class BayesianSR(RegressorMixin, BaseEstimator):
     """Bayesian sparse representation with coupled dictionaries and a pose-kernel logit prior.
 
@@ -61,24 +72,45 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         Sweeps discarded before samples are retained (the paper: 700). Must be < ``n_iter``.
     thin : int, default=10
         Keep every ``thin``-th sweep after burn-in for prediction (1200/700/10 keeps 50 samples).
-    w_update : {"ess", "mh", "paper-as-printed"}, default="ess"
+    w_update : {"ess", "mh", "paper-printed-ratio", "paper-literal"}, default="ess"
         Update of the logits: elliptical slice sampling (Murray, Adams & MacKay 2010), the bound-based
-        Metropolis-Hastings proposal of the paper with the correct acceptance ratio, or the paper's printed
-        (incorrect) ratio, kept only as an ablation. Both exact updates pass the Geweke test; ESS is the
-        default because it mixes far better: the MH proposal ``N(Sigma Lambda(w), Sigma)`` is a global move
-        whose acceptance collapses with N (about 0.3% at N = 100 on the authors' features, against the
-        paper's reported > 94%), while ESS always moves at a similar cost per sweep.
+        Metropolis-Hastings proposal of the paper (Appendix A) with the correct acceptance ratio, or two
+        ablations with the wrong target: "paper-printed-ratio" keeps the tight bound lambda = sigmoid(-z w) and
+        uses the paper's printed (independence-chain) ratio; "paper-literal" uses lambda = sigmoid(+z w) and the
+        printed ratio, exactly as the appendix prints them. Both exact updates pass the Geweke test and both
+        ablations fail it (tests/test_bsr_geweke.py). ESS is the default because it mixes far better: the MH
+        proposal ``N(Sigma Lambda(w), Sigma)`` is a global move whose acceptance collapses with N (about 0.3%
+        at N = 100 on the authors' features, against the paper's reported > 94%), while ESS always moves at a
+        similar cost per sweep.
     atom_update : {"block", "single"}, default="block"
         Update of the dictionaries: all atoms jointly from their K x K posterior precision (exact, mixes
         better per sweep when atoms are correlated) or one atom at a time as in the paper's Gibbs scheme
         (cheaper per sweep at large K: O(N K M) against O(K^2 (N + M) + K^3)).
     n_predict_sweeps : int, default=10
         Gibbs sweeps of a test point's codes per posterior sample (from zero codes).
+    prediction : {"conditional", "paper-text"}, default="conditional"
+        How a test point's codes are drawn per posterior sample. "conditional": (b_t, s_t) given x_t and the
+        averaged logits w_t of its j nearest training inputs, by ``n_predict_sweeps`` Gibbs sweeps of the block
+        update on the feature rows (the model reference's reading of the paper). "paper-text": as the paper's
+        Section "Pose Prediction" says, z_t ~ P(z_t | w_t) from the logits alone (not conditioned on x_t), then
+        s_t | x_t, z_t exactly from its Gaussian (an ablation; combine with ``prediction_weighting``;
+        ``n_predict_sweeps`` is not used).
     prediction_weighting : {"uniform", "likelihood"}, default="uniform"
         Average posterior samples uniformly, or with the paper's self-normalized weights
-        ``N(x_t; D^x alpha_t, 1/g_xy I)``.
+        ``beta_l = N(x_t; D^x alpha_t, 1/g_xy I)`` (g_nx with separate noise precisions).
     a0, b0 : float, default=1e-6
-        Gamma(shape a0, rate b0) hyper-prior of the four precisions g_s, g_xy, g_x, g_y (the paper: 1e-6).
+        Gamma(shape a0, rate b0) hyper-prior of the precisions g_s, g_x, g_y, and of g_xy unless ``a_xy``,
+        ``b_xy`` are given (the paper: 1e-6 for all).
+    a_xy, b_xy : float or None, default=None
+        Gamma(shape, rate) prior of the noise precision g_xy alone (of g_nx and g_ny with ``noise="separate"``);
+        None means a0 (resp. b0). A proper prior, e.g. a_xy = b_xy = 1, bounds the upward drift of g_xy when the
+        codes can interpolate the training pairs (docs/pm-convergence.md).
+    w_prior_mean : float, default=0.0
+        Prior mean m of every logit, w_k ~ N(m 1, Sigma_w) (the paper: 0). A negative m makes P(on) small a priori
+        (sparsity-inducing).
+    noise : {"shared", "separate"}, default="shared"
+        One noise precision g_xy for the feature and output rows (the paper), or a model extension with g_nx for
+        the Mx feature rows and g_ny for the My output rows, each with the (a_xy, b_xy) prior.
     standardize : bool, default=True
         Scale X with ``input_scaling`` and standardize Y per column with training statistics (predictions
         are mapped back); False: the raw X and Y.
@@ -99,10 +131,13 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     n_outputs_ : int
     trace_ : dict of ndarray, one value per sweep
         ``log_likelihood``, ``g_xy``, ``g_s``, ``g_x``, ``g_y``, ``active_atoms`` (atoms used by any training
-        point), ``acceptance`` (fraction of logit vectors moved: MH acceptance; 1 for ESS).
+        point), ``acceptance`` (fraction of logit vectors that moved: the MH acceptance rate; for ESS the fraction
+        whose slice move changed them, 1 unless the shrinkage degenerated). With ``noise="separate"`` also
+        ``g_nx`` and ``g_ny``, and ``g_xy`` is then their pooled precision ``M / (Mx / g_nx + My / g_ny)`` (the
+        inverse of the mean noise variance over all M rows, comparable with the shared g_xy).
     samples_ : dict of ndarray
-        Retained posterior samples: ``Dx`` (L, K, Mx), ``Dy`` (L, K, My), ``W`` (L, N, K), ``g_s``, ``g_xy``
-        (L,), in standardized units.
+        Retained posterior samples: ``Dx`` (L, K, Mx), ``Dy`` (L, K, My), ``W`` (L, N, K), ``g_s``, ``g_xy``,
+        ``g_nx``, ``g_ny`` (L,), in standardized units.
     eta_ : float
         Bandwidth of the logit prior kernel ``exp(-||y_i - y_j|| / eta)``.
     sigma_jitter_ : float
@@ -122,9 +157,14 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         w_update="ess",
         atom_update="block",
         n_predict_sweeps=10,
+        prediction="conditional",
         prediction_weighting="uniform",
         a0=1e-6,
         b0=1e-6,
+        a_xy=None,
+        b_xy=None,
+        w_prior_mean=0.0,
+        noise="shared",
         standardize=True,
         input_scaling="pooled",
         random_state=None,
@@ -138,9 +178,14 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         self.w_update = w_update
         self.atom_update = atom_update
         self.n_predict_sweeps = n_predict_sweeps
+        self.prediction = prediction
         self.prediction_weighting = prediction_weighting
         self.a0 = a0
         self.b0 = b0
+        self.a_xy = a_xy
+        self.b_xy = b_xy
+        self.w_prior_mean = w_prior_mean
+        self.noise = noise
         self.standardize = standardize
         self.input_scaling = input_scaling
         self.random_state = random_state
@@ -175,8 +220,16 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             raise InputError(
                 f"prediction_weighting must be 'uniform' or 'likelihood'; got {self.prediction_weighting!r}"
             )
+        if self.prediction not in PREDICTIONS:
+            raise InputError(f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}")
         _check_positive("a0", self.a0)
         _check_positive("b0", self.b0)
+        for name in ("a_xy", "b_xy"):
+            if getattr(self, name) is not None:
+                _check_positive(name, getattr(self, name))
+        _check_finite("w_prior_mean", self.w_prior_mean)
+        if self.noise not in kern.NOISE_MODELS:
+            raise InputError(f"noise must be one of {sorted(kern.NOISE_MODELS)}; got {self.noise!r}")
         if not isinstance(self.standardize, (bool, np.bool_)):
             raise InputError(f"standardize must be True or False; got {self.standardize!r}")
         check_input_scaling(self.input_scaling)
@@ -223,9 +276,13 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         rng = np.random.default_rng(int(seed_fit))
         self.predict_seed_ = int(seed_pred)
 
-        state = self._initial_state(V, Mx, K, rng)
+        state = self._initial_state(V, Mx, K, rng, float(self.w_prior_mean))
         data = kern.BSRData(V=V, Mx=Mx, Sigma=Sigma, Lw=np.ascontiguousarray(Lw))
-        hyper = kern.BSRHyper(a0=float(self.a0), b0=float(self.b0))
+        hyper = kern.BSRHyper(
+            a0=float(self.a0), b0=float(self.b0),
+            a_xy=None if self.a_xy is None else float(self.a_xy), b_xy=None if self.b_xy is None else float(self.b_xy),
+            w_mean=float(self.w_prior_mean), noise=self.noise,
+        )
 
         n_keep = (self.n_iter - self.n_burn_in) // self.thin
         if n_keep < 1:
@@ -236,8 +293,12 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         Ws = np.empty((n_keep, N, K))
         gs = np.empty(n_keep)
         gxy = np.empty(n_keep)
-        names = ("log_likelihood", "g_xy", "g_s", "g_x", "g_y", "active_atoms", "acceptance")
+        gnx = np.empty(n_keep)
+        gny = np.empty(n_keep)
+        names = ("log_likelihood", "g_xy", "g_s", "g_x", "g_y", "g_nx", "g_ny", "active_atoms", "acceptance")
         trace = {name: np.empty(self.n_iter) for name in names}
+        if self.noise == "shared":  # g_nx = g_ny = g_xy: not traced twice
+            del trace["g_nx"], trace["g_ny"]
 
         level = logging.INFO if self.verbose else logging.DEBUG
         t0 = time.perf_counter()
@@ -248,23 +309,24 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             except (np.linalg.LinAlgError, ZeroDivisionError, ValueError) as exc:
                 raise SamplerError(
                     f"BayesianSR: non-finite or degenerate sampler state at sweep {it} ({exc}); "
-                    f"g_s, g_xy, g_x, g_y = {state.prec.tolist()}; check the scale of X and Y "
+                    f"g_s, g_xy, g_x, g_y, g_nx, g_ny = {state.prec.tolist()}; check the scale of X and Y "
                     f"(standardize=True) and the hyper-priors a0, b0"
                 ) from exc
-            g_s, g_xy, g_x, g_y = state.prec
+            g_s, g_xy, g_x, g_y, g_nx, g_ny = state.prec
             if not (np.all(np.isfinite(stats)) and np.all(np.isfinite(state.prec)) and np.all(state.prec > 0)):
                 raise SamplerError(
                     f"BayesianSR: non-finite or degenerate sampler state at sweep {it}: "
                     f"log-likelihood={stats[0]!r}, g_s={g_s!r}, g_xy={g_xy!r}, g_x={g_x!r}, g_y={g_y!r}; "
                     f"check the scale of X and Y (standardize=True) and the hyper-priors a0, b0"
                 )
-            for name, val in zip(names, (stats[0], g_xy, g_s, g_x, g_y, stats[1], stats[2])):
-                trace[name][it] = val
+            for name, val in zip(names, (stats[0], g_xy, g_s, g_x, g_y, g_nx, g_ny, stats[1], stats[2])):
+                if name in trace:
+                    trace[name][it] = val
             if it in keep_at:
                 Dx[slot] = state.D[:, :Mx]
                 Dy[slot] = state.D[:, Mx:]
                 Ws[slot] = state.W
-                gs[slot], gxy[slot] = g_s, g_xy
+                gs[slot], gxy[slot], gnx[slot], gny[slot] = g_s, g_xy, g_nx, g_ny
                 slot += 1
             if (it + 1) % _LOG_EVERY == 0 or it + 1 == self.n_iter:
                 logger.log(
@@ -274,13 +336,14 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 )
         self.fit_seconds_ = time.perf_counter() - t0
         self.trace_ = trace
-        self.samples_ = {"Dx": Dx, "Dy": Dy, "W": Ws, "g_s": gs, "g_xy": gxy}
+        self.samples_ = {"Dx": Dx, "Dy": Dy, "W": Ws, "g_s": gs, "g_xy": gxy, "g_nx": gnx, "g_ny": gny}
         self.X_train_ = Xs
         return self
 
     @staticmethod
-    def _initial_state(V, Mx, K, rng):
-        """A random start: W = 0 (every atom on with probability 1/2), codes and atoms at the data scale."""
+    def _initial_state(V, Mx, K, rng, w_mean=0.0):
+        """A random start: W = w_mean (every atom on with probability sigmoid(w_mean): 1/2 in the paper's model),
+        codes and atoms at the data scale."""
         N, M = V.shape
         with np.errstate(over="ignore"):
             v2 = max(float(np.mean(V * V)), 1e-12)
@@ -291,16 +354,19 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             )
         g_s, g_xy, g_d = 1.0, 1.0 / v2, K / (2.0 * v2)
         D = np.ascontiguousarray(rng.standard_normal((K, M)) / np.sqrt(g_d))
-        B = (rng.random((N, K)) < 0.5).astype(np.int8)
+        B = (rng.random((N, K)) < 1.0 / (1.0 + np.exp(-w_mean))).astype(np.int8)
         S = rng.standard_normal((N, K))
-        W = np.zeros((N, K))
+        W = np.full((N, K), float(w_mean))
         R = np.ascontiguousarray(V - (B * S) @ D)
         norms = np.einsum("km,km->k", D, D)
-        return kern.BSRState(D=D, norms=norms, B=B, S=S, W=W, R=R, prec=np.array([g_s, g_xy, g_d, g_d]))
+        prec = np.array([g_s, g_xy, g_d, g_d, g_xy, g_xy])
+        return kern.BSRState(D=D, norms=norms, B=B, S=S, W=W, R=R, prec=prec)
 
     # ------------------------------------------------------------------------------------------------------
     def _predict_draws(self, X, n_neighbors):
-        """Per test point and retained sample: y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g_xy I)."""
+        """Per test point and retained sample: standardized y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g I)."""
+        if self.prediction not in PREDICTIONS:
+            raise InputError(f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}")
         j = self.n_neighbors if n_neighbors is None else n_neighbors
         N = self.X_train_.shape[0]
         j = _check_int("n_neighbors", j, 1, N)
@@ -311,9 +377,55 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         T, L, My = X.shape[0], s["Dx"].shape[0], s["Dy"].shape[2]
         out_y = np.empty((T, L, My))
         out_ll = np.empty((T, L))
-        kern.predict_kernel(Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_xy"], int(self.n_predict_sweeps),
-                            seeds, out_y, out_ll)
+        if self.prediction == "paper-text":
+            kern.predict_kernel_prior_codes(Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_nx"], seeds, out_y,
+                                            out_ll)
+        else:
+            kern.predict_kernel(Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_nx"], int(self.n_predict_sweeps),
+                                seeds, out_y, out_ll)
         return out_y, out_ll
+
+    def _weights(self, out_ll):
+        """Sample weights (T, L): uniform, or the paper's self-normalized beta_l (prediction_weighting)."""
+        if self.prediction_weighting == "likelihood":
+            lw = out_ll - out_ll.max(axis=1, keepdims=True)
+            wts = np.exp(lw)
+            return wts / wts.sum(axis=1, keepdims=True)
+        if self.prediction_weighting == "uniform":
+            return np.full(out_ll.shape, 1.0 / out_ll.shape[1])
+        raise InputError(
+            f"prediction_weighting must be 'uniform' or 'likelihood'; got {self.prediction_weighting!r}"
+        )
+
+    def predict_draws(self, X, n_neighbors=None):
+        """Per-retained-sample predictions and the weights :meth:`predict` averages them with.
+
+        Parameters
+        ----------
+        X : array of shape (n_test, n_features)
+        n_neighbors : int or None
+            Overrides the fitted ``n_neighbors`` for this call.
+
+        Returns
+        -------
+        draws : ndarray of shape (n_test, n_samples, n_outputs)
+            ``D^y alpha_t`` of each retained posterior sample (``n_samples`` = ``samples_["g_xy"].size``), in the
+            units of Y (mapped back from the standardized scale); no noise added.
+        weights : ndarray of shape (n_test, n_samples)
+            Rows sum to 1: uniform, or the paper's self-normalized beta_l (``prediction_weighting``).
+            ``predict(X)`` equals ``einsum("tl,tlm->tm", weights, draws)`` up to rounding.
+
+        Raises InputError for an invalid ``n_neighbors`` and the scikit-learn errors for X of the wrong width.
+        """
+        check_is_fitted(self, "samples_")
+        check_finite_input(self, X)
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        ys, ws = [], []
+        for i in range(0, max(X.shape[0], 1), _CHUNK):
+            out_y, out_ll = self._predict_draws(X[i:i + _CHUNK], n_neighbors)
+            ys.append(out_y * self.y_scale_ + self.y_mean_)
+            ws.append(self._weights(out_ll))
+        return np.concatenate(ys), np.concatenate(ws)
 
     def predict(self, X, return_std=False, n_neighbors=None):
         """Posterior predictive mean (and per-output std with ``return_std``) in the units of Y.
@@ -321,8 +433,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         The mean is clipped to the training range of each output widened by half its width on each side
         (:func:`bsrbench.models.scaling.output_bounds`); the std is not changed.
 
-        The std combines the spread of the per-sample predictions and the noise variance 1/g_xy.
-        ``n_neighbors`` overrides the fitted value for this call.
+        The std combines the spread of the per-sample predictions and the noise variance 1/g_xy (1/g_ny, the
+        output rows' noise, with ``noise="separate"``). ``n_neighbors`` overrides the fitted value for this call.
         """
         check_is_fitted(self, "samples_")
         check_finite_input(self, X)
@@ -336,14 +448,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
 
     def _predict_chunk(self, X, n_neighbors):
         out_y, out_ll = self._predict_draws(X, n_neighbors)
-        L = out_y.shape[1]
-        if self.prediction_weighting == "likelihood":
-            lw = out_ll - out_ll.max(axis=1, keepdims=True)
-            wts = np.exp(lw)
-            wts /= wts.sum(axis=1, keepdims=True)
-        else:
-            wts = np.full(out_ll.shape, 1.0 / L)
+        wts = self._weights(out_ll)
         mean = np.einsum("tl,tlm->tm", wts, out_y)
         spread = np.einsum("tl,tlm->tm", wts, (out_y - mean[:, None, :]) ** 2)
-        noise = wts @ (1.0 / self.samples_["g_xy"])
+        noise = wts @ (1.0 / self.samples_["g_ny"])
         return mean * self.y_scale_ + self.y_mean_, np.sqrt(spread + noise[:, None]) * self.y_scale_
