@@ -13,6 +13,9 @@ or all there are (config/datasets.yaml). Both mocap versions are built with the 
 (bsrbench.datasets.prepare_motion and compute_mocap_features, the codebook results/features/codebook.npz and
 the render settings of config/datasets.yaml) into benchmarks/results/protocol_stats_cache/.
 
+hsc "rows matched to the trials here": only the rows of x09/x131 that come from the trials in resources/cmu-mocap
+(resources/paper-features/alignment), the frames of the mocap "after" sets.
+
 "in their convention": the mocap poses written as the authors' 57 angles (bsrbench.authors, the mapping of
 resources/paper-features/alignment/x09_mapping.csv for the Daz skeleton, x131 for the 3dsMax one), to tell the
 convention's share of the spread (their knees and elbows flip between Euler branches) from the frames' share.
@@ -98,6 +101,15 @@ def main():
              "spread": spread(Y), "change": change(Y), "nn1_n30": nn1(X, Y, 2, f"hsc/{a}")}
         rows.append(r)
         print(r, flush=True)
+        aligned = ROOT / "resources" / "paper-features" / "alignment" / f"{Path(f).stem}_rows.csv"
+        if aligned.is_file():
+            m = pd.read_csv(aligned, dtype={"trial": str})
+            k = m.loc[m["frame_120fps"] >= 0, "row"].to_numpy()
+            X, Y = np.asarray(d["X"][k], float), np.asarray(d["Y"][k, 3:], float)
+            r = {"source": "hsc", "activity": a, "protocol": "rows matched to the trials here", "frames": len(Y),
+                 "spread": spread(Y), "change": change(Y), "nn1_n30": nn1(X, Y, 2, f"hsc/{a}/aligned")}
+            rows.append(r)
+            print(r, flush=True)
     CACHE.mkdir(parents=True, exist_ok=True)
     for a in MOCAP:
         e = dcfg["datasets"]["mocap"][a]
@@ -116,7 +128,8 @@ def main():
             Yt = their_convention(mpath)
             r = {"source": "mocap", "activity": a, "protocol": label, "frames": len(Y), "spread": spread(Y),
                  "change": change(Y), "nn1_n30": nn1(fs.X, Y, int(fs.meta["heading_column"]), f"mocap/{a}"),
-                 "spread_their_convention": spread(Yt), "change_their_convention": change(Yt)}
+                 "spread_their_convention": spread(Yt), "change_their_convention": change(Yt),
+                 "nn1_n30_their_convention": nn1(fs.X, Yt, 2, f"mocap/{a}")}
             rows.append(r)
             print(r, flush=True)
     df = pd.DataFrame(rows)

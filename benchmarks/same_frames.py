@@ -136,7 +136,7 @@ def feature_sets(name, rows, variants, codebook, cfg):
     return out
 
 
-def run(files, variants, sizes, seeds, cv):
+def run(files, variants, sizes, seeds, cv, only=None):
     cfg = config()
     with np.load(ROOT / "results" / "features" / "codebook.npz") as z:
         codebook = z["centres"]
@@ -153,6 +153,8 @@ def run(files, variants, sizes, seeds, cv):
                 tr, te = perm[:n_train], perm[n_train:]
                 for fs, X in sets.items():
                     for mname, est, grid in methods():
+                        if only and mname not in only:
+                            continue
                         res = tune(est, grid, X[tr], Y[tr], cv=cv, random_state=derive_seed("cv", name, n_train, seed),
                                    pose_transform=H, n_jobs=1)
                         model = sklearn.clone(est).set_params(**res.best_params)
@@ -162,7 +164,8 @@ def run(files, variants, sizes, seeds, cv):
                                          "n_train": n_train, "seed": seed, "n_rows": M, "error_deg": err,
                                          "best_params": json.dumps(res.best_params, sort_keys=True)})
                 print(f"{name} N={n_train} seed={seed}: " + ", ".join(
-                    f"{r['features']}/{r['method']} {r['error_deg']:.2f}" for r in rows_out[-len(sets) * 3:]),
+                    f"{r['features']}/{r['method']} {r['error_deg']:.2f}"
+                    for r in rows_out[-len(sets) * (len(only) if only else 3):]),
                     flush=True)
     return pd.DataFrame(rows_out)
 
@@ -186,10 +189,11 @@ def main():
     ap.add_argument("--sizes", nargs="+", type=int, default=[30, 100])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--cv", type=int, default=5)
+    ap.add_argument("--methods", nargs="+", default=None, choices=["1-NN", "SR", "TGP"])
     ap.add_argument("--out", type=Path, default=OUT / "same_frames.csv")
     a = ap.parse_args()
     with threadpool_limits(1):
-        df = run(a.files, a.variants, a.sizes, list(range(a.seeds)), a.cv)
+        df = run(a.files, a.variants, a.sizes, list(range(a.seeds)), a.cv, a.methods)
     with atomic_path(a.out) as tmp:
         df.to_csv(tmp, index=False)
     with pd.option_context("display.width", 250, "display.max_columns", 30):

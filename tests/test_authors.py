@@ -19,6 +19,7 @@ from bsrbench.authors import (
     hsc_positions,
     hsc_rotations,
     hsc_skeleton,
+    hsc_stick_figure,
     load_angle_mapping,
     ours_to_hsc_angles,
     save_angle_mapping,
@@ -60,6 +61,13 @@ def test_rest_rows_pose_a_t_pose_and_zero_angles_hang_the_arms():
     assert Z[sk.index("LeftWrist")][1] < Z[sk.index("LeftShoulder")][1] - 20.0  # their rest pose: arms down
     with pytest.raises(InputError, match=r"expected rows of 57 angles"):
         hsc_positions(np.zeros(56))
+    pos, parents = hsc_stick_figure(Y[5, 3:])
+    np.testing.assert_allclose(pos, hsc_positions(Y[5:6, 3:])[0])
+    np.testing.assert_allclose(pos[0], 0.0)
+    bones = np.linalg.norm(pos[1:] - pos[parents[1:]], axis=1)  # FK keeps every bone's length
+    np.testing.assert_allclose(bones, np.linalg.norm(sk.offsets[1:], axis=1), rtol=1e-9)
+    with pytest.raises(InputError, match=r"hsc_stick_figure: expected the 57 angles of one pose"):
+        hsc_stick_figure(Y[5])
 
 
 def test_canonical_euler_is_their_zxy_decomposition():

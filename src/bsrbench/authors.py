@@ -137,6 +137,19 @@ def hsc_positions(Y, centred=True):
     return forward_kinematics(skel.parents, R, T)[0]
 
 
+def hsc_stick_figure(angles):
+    """One authors' pose as a 3-D stick figure: ``(positions (24, 3), parents (24,))``, root at the origin.
+
+    ``angles``: the 57 pose angles of one row (degrees; e.g. a row of ``Y`` in a features file of the hsc source,
+    a prediction, or a .mat row without its 3 translation columns). Joints and parents are those of
+    :func:`hsc_skeleton` (y up, as the mocap stick figures). Raises InputError for another shape.
+    """
+    a = np.asarray(angles, dtype=float)
+    if a.shape != (57,):
+        raise InputError(f"hsc_stick_figure: expected the 57 angles of one pose; got shape {a.shape}")
+    return hsc_positions(a[None])[0], hsc_skeleton().parents.copy()
+
+
 def canonical_euler(R):
     """Euler angles (..., 3) in degrees, in the authors' column order (Z, X, Y; ``R = Rz @ Rx @ Ry``), with the
     middle (X) angle in [-90, 90] -- the decomposition their files use (a knee bent past 90 degrees appears as
