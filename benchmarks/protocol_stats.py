@@ -20,7 +20,7 @@ hsc "rows matched to the trials here": only the rows of x09/x131 that come from 
 resources/paper-features/alignment/x09_mapping.csv for the Daz skeleton, x131 for the 3dsMax one), to tell the
 convention's share of the spread (their knees and elbows flip between Euler branches) from the frames' share.
 
-Writes benchmarks/results/protocol_stats.csv.
+Writes benchmarks/tables/protocol_stats.csv.
 
     .venv/bin/python benchmarks/protocol_stats.py
 """
@@ -133,7 +133,8 @@ def main():
             rows.append(r)
             print(r, flush=True)
     df = pd.DataFrame(rows)
-    with atomic_path(OUT / "protocol_stats.csv") as tmp:
+    (ROOT / "benchmarks" / "tables").mkdir(exist_ok=True)
+    with atomic_path(ROOT / "benchmarks" / "tables" / "protocol_stats.csv") as tmp:
         df.to_csv(tmp, index=False, float_format="%.3f")
     with pd.option_context("display.width", 200):
         print(df.to_string(index=False, float_format=lambda v: f"{v:.2f}"))

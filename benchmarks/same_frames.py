@@ -16,10 +16,16 @@ Variants (one stage changed at a time) locate a difference:
   az<deg>         ours rendered with another camera azimuth (e.g. az90: a side view);
   pts<k>          ours with k contour points per silhouette.
 
-Writes benchmarks/results/same_frames.csv (one line per file, variant, method, N, seed) and prints the table of
-means with the ratios. Silhouettes and descriptors are cached in benchmarks/results/same_frames_cache/.
+Writes benchmarks/tables/same_frames.csv (one line per file, variant, method, N, seed) and
+same_frames_summary.csv (mean ± std over seeds, and each variant's mean / the mean with their features). Silhouettes and descriptors are cached in benchmarks/results/same_frames_cache/.
 
     .venv/bin/python benchmarks/same_frames.py [--variants ours ours_scaled theirs_unit az90] [--seeds 5]
+        [--azimuth 0] [--methods 1-NN]
+
+The committed tables (benchmarks/tables/same_frames*.csv) were made, before the configured azimuth changed from
+0 to 135, by: the defaults (ours, ours_scaled, theirs_unit at azimuth 0), then --variants az45, then
+--variants az135, and the 1-NN sweep --variants ours az45 az90 az135 az180 az270 pts100 pts400 --methods 1-NN;
+each run is deterministic, so the concatenation equals one run with all variants.
 """
 
 import argparse
@@ -136,8 +142,10 @@ def feature_sets(name, rows, variants, codebook, cfg):
     return out
 
 
-def run(files, variants, sizes, seeds, cv, only=None):
+def run(files, variants, sizes, seeds, cv, only=None, azimuth=None):
     cfg = config()
+    if azimuth is not None:
+        cfg["render"]["view_azimuth_deg"] = float(azimuth)
     with np.load(ROOT / "results" / "features" / "codebook.npz") as z:
         codebook = z["centres"]
     H = HeadingTransform(column=2)
@@ -160,7 +168,10 @@ def run(files, variants, sizes, seeds, cv, only=None):
                         model = sklearn.clone(est).set_params(**res.best_params)
                         model.fit(X[tr], H.forward(Y[tr]))
                         err = mean_angle_error(Y[te], H.inverse(model.predict(X[te])))
+                        az = (float(fs[2:]) if fs.startswith("az") else cfg["render"]["view_azimuth_deg"]) \
+                            if fs.startswith(("az", "ours", "pts")) else np.nan
                         rows_out.append({"file": name, "activity": FILES[name], "features": fs, "method": mname,
+                                         "azimuth_deg": az,
                                          "n_train": n_train, "seed": seed, "n_rows": M, "error_deg": err,
                                          "best_params": json.dumps(res.best_params, sort_keys=True)})
                 print(f"{name} N={n_train} seed={seed}: " + ", ".join(
@@ -190,15 +201,20 @@ def main():
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--cv", type=int, default=5)
     ap.add_argument("--methods", nargs="+", default=None, choices=["1-NN", "SR", "TGP"])
-    ap.add_argument("--out", type=Path, default=OUT / "same_frames.csv")
+    ap.add_argument("--azimuth", type=float, default=None,
+                    help="camera azimuth of the ours* and pts* variants (default: config/datasets.yaml)")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "tables" / "same_frames.csv")
     a = ap.parse_args()
     with threadpool_limits(1):
-        df = run(a.files, a.variants, a.sizes, list(range(a.seeds)), a.cv, a.methods)
+        df = run(a.files, a.variants, a.sizes, list(range(a.seeds)), a.cv, a.methods, a.azimuth)
     with atomic_path(a.out) as tmp:
-        df.to_csv(tmp, index=False)
+        df.to_csv(tmp, index=False, float_format="%.4f")
+    summary = a.out.with_name(a.out.stem + "_summary.csv")
+    with atomic_path(summary) as tmp:
+        table(df).to_csv(tmp, index=False)
     with pd.option_context("display.width", 250, "display.max_columns", 30):
         print(table(df).to_string(index=False))
-    print(f"wrote {a.out}")
+    print(f"wrote {a.out} and {summary}")
 
 
 if __name__ == "__main__":
