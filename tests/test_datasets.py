@@ -12,6 +12,7 @@ from bsrbench.datasets import (
     build_mat_features,
     check_features,
     cmu_url,
+    count_motion_frames,
     download_cmu_skeleton,
     download_cmu_trial,
     load_feature_mat,
@@ -21,6 +22,7 @@ from bsrbench.datasets import (
     save_features,
     select_frames,
     sha256_file,
+    step_frames,
     verify_checksum,
 )
 from bsrbench.errors import DataFileError, InputError
@@ -101,6 +103,44 @@ def test_select_frames():
     np.testing.assert_array_equal(select_frames(9, 5, "spread"), [0, 2, 4, 6, 8])
     with pytest.raises(InputError, match=r"frame_selection must be 'first' or 'spread'; got 'last'"):
         select_frames(9, 5, "last")
+
+
+def test_select_frames_fewer_than_asked():
+    np.testing.assert_array_equal(select_frames(7, 600, "first", fewer="use_all"), np.arange(7))
+    with pytest.raises(InputError, match=r"run: has 7 usable frames but n_frames = 600"):
+        select_frames(7, 600, "first", source="run")
+    with pytest.raises(InputError, match=r"has 7 usable frames"):  # a spread would repeat frames
+        select_frames(7, 600, "spread", fewer="use_all")
+    with pytest.raises(InputError, match=r"fewer_frames must be one of"):
+        select_frames(7, 5, "first", fewer="pad")
+
+
+def test_step_frames_keeps_file_frames_multiple_of_the_step():
+    tf = np.concatenate([np.arange(6, 15), np.arange(6, 10)])  # two trials after skip_frames = 6
+    np.testing.assert_array_equal(tf[step_frames(tf, 4)], [8, 12, 8])
+    np.testing.assert_array_equal(step_frames(tf, 1), np.arange(len(tf)))
+    for bad in (0, 2.0, True):
+        with pytest.raises(InputError, match=r"frame_step must be an integer >= 1"):
+            step_frames(tf, bad)
+
+
+def test_prepare_motion_authors_protocol(tmp_path):
+    """One frame in 4 of each 120 fps file (file frames 0, 4, 8, ... after skip_frames), trials in order,
+    the first n_frames; fewer than asked with fewer_frames use_all; the header count agrees."""
+    trials = [CMU / "09_01.bvh", CMU / "09_02.bvh"]  # 149 and 131 frames
+    out = tmp_path / "run.npz"
+    sel = prepare_motion(trials, out, n_frames=600, frame_selection="first", skip_frames=6, frame_step=4,
+                         fewer_frames="use_all")
+    expect = [(0, f) for f in range(8, 149, 4)] + [(1, f) for f in range(8, 131, 4)]
+    assert sel.n_frames == len(expect) == count_motion_frames(trials, 6, 4)
+    np.testing.assert_array_equal(np.c_[sel.trial_index, sel.trial_frames], expect)
+    with np.load(out) as z:
+        assert int(z["frame_step"]) == 4 and str(z["frame_selection"]) == "first"
+        assert "one frame in 4 of the 120 fps trials (30 fps)" in str(z["frame_protocol"])
+    first = prepare_motion(trials, tmp_path / "r10.npz", n_frames=10, frame_selection="first", skip_frames=6,
+                           frame_step=4)
+    np.testing.assert_array_equal(first.trial_frames, np.arange(8, 48, 4))
+    assert count_motion_frames([CMU / "09_01.bvh", tmp_path / "missing.bvh"], 6, 4) is None
 
 
 def test_prepare_motion_and_short_trial(tmp_path):

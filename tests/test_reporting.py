@@ -98,6 +98,20 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
     assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == ["Acrobatics", "Navigate", "Golf"]
 
 
+def test_latex_table_notes_skipped_sizes_and_states_the_frames():
+    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 10.0], ("golf", "NN1"): [6.0, 7.0]}))
+    note = "N = 200 skipped: 167 frames leave -33 test frames, fewer than min_test = 100"
+    text = latex_table(summarize(df), _paper(), source="hsc", table="I", methods=["PM", "NN1"], labels=LABELS,
+                       n_train=[30, 200], protocols=["random"], status={"Golf": "golf"},
+                       skipped={"random": {"golf": [note]}}, frames={"golf": "one frame in 4, first 600 frames"})
+    lines = [ln for ln in text.splitlines() if ln.endswith("\\\\")]
+    golf = [ln for ln in lines if ln.startswith("Golf &")]
+    assert golf[0].startswith("Golf & 30 & ") and r"$\pm$" in golf[0]
+    assert golf[-1].startswith("Golf & 200 & ") and "N = 200 skipped: 167 frames" in golf[-1]
+    assert "pm" not in golf[-1]
+    assert r"Frames. golf: one frame in 4, first 600 frames." in text
+
+
 def test_findings_count_where_the_claim_holds():
     df = aggregate_rows(_rows({
         ("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("golf", "NN1"): [7.0, 7.5],

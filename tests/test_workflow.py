@@ -57,6 +57,7 @@ def test_dry_run(args):
         ("study_activities: {nosource: [golf]}", r"study_activities.*unknown data source 'nosource'"),
         ("run: [PM, XGB]", r"'run': unknown method 'XGB'"),
         ("n_train: [30, 550]", r"'n_train': 550 is too large for hsc/acrobatics"),
+        ("n_train: [200]", r"study_activities\.mocap': walk has 167 frames, and every n_train \[200\] leaves"),
         ("n_seeds: 0", r"n_seeds"),
         ("protocols: [blocks]", r"blocks"),
         ("cv: {mode: sometimes}", r"sometimes"),

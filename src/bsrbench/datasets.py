@@ -121,22 +121,90 @@ def check_features(X, Y, source, n_features=None, n_angles=None):
             )
 
 
-def select_frames(n_available, n_frames, how, source="<data>"):
+def select_frames(n_available, n_frames, how, source="<data>", fewer="error"):
     """Row indices: ``"first"`` -> ``0 .. n_frames-1``; ``"spread"`` -> ``round(linspace(0, n_available-1,
-    n_frames))`` (evenly over all usable frames). InputError if fewer than ``n_frames`` are available."""
+    n_frames))`` (evenly over all usable frames).
+
+    With fewer than ``n_frames`` available: ``fewer="error"`` raises InputError; ``fewer="use_all"`` keeps all
+    ``n_available`` (``"first"`` only: a spread over fewer frames than asked would repeat frames).
+    """
     n_available, n_frames = int(n_available), int(n_frames)
     if n_frames < 1:
         raise InputError(f"{source}: n_frames must be >= 1; got {n_frames}")
+    if how not in ("first", "spread"):
+        raise InputError(f"{source}: frame_selection must be 'first' or 'spread'; got {how!r}")
+    if fewer not in FEWER_FRAMES:
+        raise InputError(f"{source}: fewer_frames must be one of {FEWER_FRAMES}; got {fewer!r}")
     if n_available < n_frames:
+        if fewer == "use_all" and how == "first" and n_available >= 1:
+            return np.arange(n_available)
         raise InputError(
             f"{source}: has {n_available} usable frames but n_frames = {n_frames} were asked for "
-            f"(add trials to concatenate, or lower n_frames)"
+            f"(add trials to concatenate, lower n_frames, or set fewer_frames: use_all with frame_selection: first)"
         )
     if how == "first":
         return np.arange(n_frames)
-    if how == "spread":
-        return np.round(np.linspace(0, n_available - 1, n_frames)).astype(int)
-    raise InputError(f"{source}: frame_selection must be 'first' or 'spread'; got {how!r}")
+    return np.round(np.linspace(0, n_available - 1, n_frames)).astype(int)
+
+
+#: What a data set does when its trials give fewer frames than ``n_frames``.
+FEWER_FRAMES = ("error", "use_all")
+
+
+def step_frames(trial_frames, frame_step):
+    """Indices of the frames whose index in their own file is a multiple of ``frame_step``.
+
+    ``trial_frames`` (F,): each frame's index within its trial file (:attr:`bsrbench.mocap.Motion.trial_frames`).
+    With ``frame_step = 4`` a 120 fps trial becomes 30 fps at the file's frames 0, 4, 8, ..., the frames the
+    authors' group's files hold (resources/paper-features/README.md, "alignment"); frames dropped by
+    ``skip_frames`` stay dropped.
+    """
+    if isinstance(frame_step, bool) or not isinstance(frame_step, (int, np.integer)) or frame_step < 1:
+        raise InputError(f"frame_step must be an integer >= 1; got {frame_step!r}")
+    return np.flatnonzero(np.asarray(trial_frames, dtype=int) % int(frame_step) == 0)
+
+
+def frame_protocol(frame_selection, frame_step, n_frames, frame_time=None):
+    """One sentence naming how a data set's frames were chosen (stored with the features; used in tables)."""
+    rate = ""
+    if frame_time:
+        rate = f" of the {1.0 / frame_time:.0f} fps trials ({1.0 / (frame_time * frame_step):.0f} fps)"
+    step = f"one frame in {frame_step}{rate}, " if frame_step > 1 else (f"all frames{rate}, " if rate else "")
+    if frame_selection == "first":
+        return f"{step}trials concatenated in order, first {n_frames} frames"
+    return f"{step}trials concatenated in order, {n_frames} frames spread evenly over all"
+
+
+def bvh_header(path):
+    """``(frames, frame_time)`` from a BVH file's ``Frames:`` and ``Frame Time:`` lines (nothing else is read),
+    or None when the file is missing, not BVH, or the lines are absent or malformed."""
+    p = Path(path)
+    if p.suffix.lower() != ".bvh" or not p.is_file():
+        return None
+    n = None
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            t = line.strip()
+            try:
+                if t.startswith("Frames:"):
+                    n = int(t.split()[1])
+                elif t.startswith("Frame Time:"):
+                    return (n, float(t.split()[2])) if n is not None else None
+            except (IndexError, ValueError):
+                return None
+    return None
+
+
+def count_motion_frames(paths, skip_frames=1, frame_step=1):
+    """Frames that :func:`prepare_motion` would have to choose from, read from the BVH headers only
+    (:func:`bvh_header`), or None when a file is missing or not BVH (AMC frames are counted by parsing)."""
+    total = 0
+    for p in paths:
+        h = bvh_header(p)
+        if h is None:
+            return None
+        total += len(step_frames(np.arange(int(skip_frames), h[0]), frame_step))
+    return total
 
 
 def load_feature_mat(
@@ -229,8 +297,15 @@ def _heading_column(angle_names, pose_joints):
 
 
 def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skeleton_kind=None, joint_map=None,
-                   drop_first_frame=True, asf=None, checksums=None, skip_frames=None):
+                   drop_first_frame=True, asf=None, checksums=None, skip_frames=None, frame_step=1,
+                   fewer_frames="error"):
     """Parse and concatenate trials, pick ``n_frames`` frames and save positions and poses to ``out_path``.
+
+    Frames: ``skip_frames`` leading frames of every trial are dropped, then only the frames whose index in their
+    file is a multiple of ``frame_step`` are kept (:func:`step_frames`; 4 turns the 120 fps CMU trials into the
+    authors' 30 fps), then :func:`select_frames` picks ``n_frames`` of the concatenation (``fewer_frames``:
+    "use_all" keeps all when there are fewer). The npz also records ``frame_step``, ``frame_selection``,
+    ``n_frames_requested`` and ``frame_protocol`` (a sentence).
 
     The ``.npz`` holds ``positions`` (F, J, 3), ``parents``, ``joint_names``, ``angles`` (F, 57), ``angle_names``,
     ``frames`` (index among the concatenated usable frames), ``trial_ids``, ``trial_index``, ``trial_frames``,
@@ -248,7 +323,8 @@ def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skel
     motion = load_motion(paths, skeleton_kind=skeleton_kind, joint_map=joint_map,
                          drop_first_frame=drop_first_frame, asf=asf, skip_frames=skip_frames)
     src = ", ".join(str(p) for p in paths)
-    idx = select_frames(motion.n_frames, n_frames, frame_selection, src)
+    motion = motion.take(step_frames(motion.trial_frames, frame_step))
+    idx = select_frames(motion.n_frames, n_frames, frame_selection, src, fewer=fewer_frames)
     sel = motion.take(idx)
     check_features(sel.positions.reshape(len(idx), -1), sel.angles, src)
     with atomic_path(out_path) as tmp:
@@ -262,6 +338,8 @@ def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skel
             heading_column=_heading_column(sel.angle_names, sel.pose_joints),
             files=np.array([str(p) for p in paths], dtype=str),
             sha256=np.array([sha256_file(p) for p in paths], dtype=str),
+            frame_step=int(frame_step), frame_selection=str(frame_selection), n_frames_requested=int(n_frames),
+            frame_protocol=frame_protocol(frame_selection, int(frame_step), int(n_frames), sel.frame_time),
         )
     return sel
 
@@ -338,7 +416,8 @@ def compute_mocap_features(motion_path, codebook_path, out_path, preview_path=No
     Y = mo["angles"]
     check_features(X, Y, f"features of {motion_path}", n_features=codebook.shape[0])
     keep = ("trial_ids", "trial_index", "trial_frames", "frame_time", "skeleton_kind", "pose_joints",
-            "heading_column", "files", "sha256")
+            "heading_column", "files", "sha256", "frame_step", "frame_selection", "n_frames_requested",
+            "frame_protocol")
     info = {k: mo[k] for k in keep if k in mo}
     info.update(meta or {})
     fs = FeatureSet(X, Y, mo["frames"], [str(a) for a in mo["angle_names"]], info)

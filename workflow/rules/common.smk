@@ -20,10 +20,15 @@ wildcard_constraints:
 
 
 def _data_activities(source):
-    """{activity: frames} of the data sets configured for ``source`` (config/datasets.yaml); {} if none."""
-    return {
-        a: int(dataset(s, a)["n_frames"]) for s, a in datasets_of(source) if s == source
-    }
+    """{activity: frames} of the data sets configured for ``source`` (config/datasets.yaml); {} if none.
+
+    The frames a data set will have (``data_frames``): fewer than n_frames when its trials give fewer.
+    """
+    return {a: data_frames(s, a) for s, a in datasets_of(source) if s == source}
+
+
+#: {(protocol, source, activity, n_train): why the cell is not run}, filled by _check_study_config.
+SKIPPED_CELLS = {}
 
 
 def _check_study_config():
@@ -71,11 +76,27 @@ def _check_study_config():
                 )
                 for n in config["n_train"]:
                     if n > limit:
-                        raise ValueError(
-                            f"config key 'n_train': {n} is too large for {source}/{a} ({known[a]} frames) with "
-                            f"protocol {protocol!r}, min_test={config['min_test']}, gap={config['gap']}: "
-                            f"at most {limit}"
+                        SKIPPED_CELLS[(protocol, source, a, int(n))] = (
+                            f"N = {n} skipped: {known[a]} frames leave {known[a] - n}"
+                            + (f" (minus the gap of {config['gap']})" if protocol == "contiguous" else "")
+                            + f" test frames, fewer than min_test = {config['min_test']}"
                         )
+    pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
+    for protocol in config["protocols"]:
+        for s, a in pairs:
+            if all((protocol, s, a, int(n)) in SKIPPED_CELLS for n in config["n_train"]):
+                raise ValueError(
+                    f"config key 'study_activities.{s}': {a} has {_data_activities(s)[a]} frames, and every "
+                    f"n_train {config['n_train']} leaves fewer than min_test={config['min_test']} test frames "
+                    f"with protocol {protocol!r}; remove it, add a smaller n_train or lower min_test"
+                )
+        for n in config["n_train"]:
+            if pairs and all((protocol, s, a, int(n)) in SKIPPED_CELLS for s, a in pairs):
+                where = ", ".join(f"{s}/{a} ({_data_activities(s)[a]} frames)" for s, a in pairs)
+                raise ValueError(
+                    f"config key 'n_train': {n} is too large for {where} with protocol {protocol!r}, "
+                    f"min_test={config['min_test']}, gap={config['gap']}: no studied activity can use it"
+                )
 
 
 _check_study_config()
@@ -103,6 +124,26 @@ def study_pairs():
     return [(s, a) for s, acts in config["study_activities"].items() for a in acts]
 
 
+def run_cell(protocol, source, activity, n_train):
+    """False for the (protocol, activity, N) cells skipped because too few test frames would remain."""
+    return (protocol, source, activity, int(n_train)) not in SKIPPED_CELLS
+
+
+def skipped_notes(source):
+    """{protocol: {activity: [note, ...]}} of the skipped cells of ``source`` (for the tables)."""
+    out = {}
+    for (p, s, a, n), note in sorted(SKIPPED_CELLS.items()):
+        if s == source:
+            out.setdefault(p, {}).setdefault(a, []).append(note)
+    return out
+
+
+def largest_run_n(protocol, source, activity):
+    """The largest N run for an activity (None if every N is skipped)."""
+    ok = [int(n) for n in config["n_train"] if run_cell(protocol, source, activity, n)]
+    return max(ok) if ok else None
+
+
 def fit_targets(ext="json"):
     return [
         f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
@@ -111,6 +152,7 @@ def fit_targets(ext="json"):
         for m in run_methods()
         for n in config["n_train"]
         for k in seeds()
+        if run_cell(p, s, a, n)
     ]
 
 
@@ -174,8 +216,7 @@ def figure_targets(ext):
 
 
 def subjective_inputs(wildcards):
-    """Predictions of the largest n_train, seed 0, first protocol, of the methods drawn in the comparison."""
-    n = max(config["n_train"])
+    """Predictions of the largest n_train run for each activity, seed 0, first protocol, of the methods drawn."""
     p = config["protocols"][0]
     shown = [m for m in config["report"]["subjective_methods"] if m in run_methods()]
     acts = config["study_activities"][wildcards.source]
@@ -187,7 +228,7 @@ def subjective_inputs(wildcards):
         ],
         "features": [f"results/features/{wildcards.source}/{a}.npz" for a in acts],
         "predictions": [
-            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{n}/seed0.npz"
+            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{largest_run_n(p, wildcards.source, a)}/seed0.npz"
             for a in acts
             for m in shown
         ],
@@ -210,8 +251,8 @@ def subjective_motion(wildcards):
 def trace_input(wildcards):
     """The saved trace of the trace method: first study activity, largest n_train, seed 0."""
     s, a = study_pairs()[0]
-    n = max(config["n_train"])
     p = config["protocols"][0]
+    n = largest_run_n(p, s, a)
     return f"results/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed0.npz"
 
 

@@ -147,8 +147,42 @@ def motion_params(wildcards):
         "skeleton_kind": None if d["skeleton"] == "auto" else d["skeleton"],
         "joint_map": d["joint_map"],
         "skip_frames": d["skip_frames"],
+        "frame_step": d["frame_step"],
+        "fewer_frames": d["fewer_frames"],
         "checksums": d["checksums"],
     }
+
+
+def data_frames(source, activity):
+    """Frames the data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its BVH
+    trials give, counted from their headers; n_frames when that cannot be counted before the files exist."""
+    from bsrbench.datasets import count_motion_frames
+
+    d = dataset(source, activity)
+    n = int(d["n_frames"])
+    if d["format"] in MOTION_FORMATS and d["fewer_frames"] == "use_all":
+        have = count_motion_frames(d["files"], d["skip_frames"], d["frame_step"])
+        if have is not None:
+            return min(n, have)
+    return n
+
+
+def frame_protocol_text(source, activity):
+    """How the data set's frames are chosen, as one sentence for the tables."""
+    from bsrbench.datasets import bvh_header, frame_protocol
+
+    d = dataset(source, activity)
+    if d["format"] not in MOTION_FORMATS:
+        return f"rows of {Path(d['files'][0]).name}, first {d['n_frames']}" if d["frame_selection"] == "first" else (
+            f"{d['n_frames']} rows of {Path(d['files'][0]).name} spread evenly"
+        )
+    header = bvh_header(d["files"][0])
+    frame_time = header[1] if header else None
+    text = frame_protocol(d["frame_selection"], int(d["frame_step"]), int(d["n_frames"]), frame_time)
+    n = data_frames(source, activity)
+    if n < int(d["n_frames"]):
+        text += f" (the trials here give {n})"
+    return text
 
 
 def mat_input(wildcards):
@@ -243,6 +277,12 @@ def _check_datasets():
             suffix = Path(f).suffix.lower().lstrip(".")
             if suffix != d["format"]:
                 raise InputError(f"{where}: file {f!r} does not end in .{d['format']} (format: {d['format']})")
+        if d["fewer_frames"] == "use_all" and d["frame_selection"] != "first":
+            raise InputError(
+                f"{where}: fewer_frames: use_all needs frame_selection: first; got {d['frame_selection']!r}"
+            )
+        if d["frame_step"] != 1 and d["format"] not in MOTION_FORMATS:
+            raise InputError(f"{where}: frame_step applies to bvh/amc trials; got {d['frame_step']} for format mat")
         if d["joint_map"] is not None and len(d["joint_map"]) == 0:
             raise InputError(f"{where}: joint_map is an empty list; expected joint names or null")
     both = set(motion_sources()) & set(mat_sources())

@@ -19,6 +19,8 @@ rule table:
         n_train=config["n_train"],
         protocols=config["protocols"],
         status=lambda w: data_status(w.source),
+        skipped=lambda w: skipped_notes(w.source),
+        frames=lambda w: {a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]},
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

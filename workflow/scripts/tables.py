@@ -23,5 +23,7 @@ text = latex_table(
     n_train=list(sm.params.n_train),
     status=dict(sm.params.status),
     protocols=list(sm.params.protocols),
+    skipped={p: {a: list(v) for a, v in d.items()} for p, d in dict(sm.params.skipped).items()},
+    frames=dict(sm.params.frames),
 )
 write_text(sm.output[0], text)

@@ -7,6 +7,7 @@ configuration give identical tables.
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -160,7 +161,8 @@ def _row(cells):
     return " & ".join(cells) + r" \\"
 
 
-def latex_table(summary, paper, *, source, table, methods, labels, n_train, status, protocols, digits=2):
+def latex_table(summary, paper, *, source, table, methods, labels, n_train, status, protocols, digits=2,
+                skipped=None, frames=None):
     """LaTeX (booktabs) for one of the paper's tables on one data source, one tabular per protocol.
 
     Parameters
@@ -173,7 +175,12 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
         to get the data}; a paper activity missing from ``status`` gets "no data".
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
         the random protocol, the paper's.
+    skipped : {protocol: {activity id: [note, ...]}}: training sizes not run because too few test frames
+        would remain; each note starts with ``"N = <n> skipped"`` and takes that size's row.
+    frames : {activity id: sentence}: how each studied activity's frames were chosen, stated under the table.
     """
+    skipped = skipped or {}
+    frames = frames or {}
     if table not in PAPER_TABLES:
         raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
     ncol = 2 + len(methods)
@@ -207,7 +214,16 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                 note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\raggedright\emph{{{latex_escape(activity)}}}}}"
                 out.append(_row([name, note]))
                 continue
+            notes = {}
+            for note in skipped.get(protocol, {}).get(activity, []):
+                m = re.match(r"N = (\d+) skipped", note)
+                if m:
+                    notes[int(m.group(1))] = note
             for n in sizes:
+                if n in notes:
+                    note = rf"\multicolumn{{{ncol - 2}}}{{@{{}}l@{{}}}}{{\emph{{{latex_escape(notes[n])}}}}}"
+                    out.append(_row([name, str(n), note]))
+                    continue
                 cell = sp[(sp["activity"] == activity) & (sp["n_train"] == n)].set_index("method")
                 means = [float(cell.at[m, "mean"]) if m in cell.index else math.nan for m in methods]
                 stds = [float(cell.at[m, "std"]) if m in cell.index else math.nan for m in methods]
@@ -229,7 +245,12 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                     for a, b, c in zip(pm, ps, pb)
                 ]
                 out.append(_row([r"\emph{\quad paper}", ""] + cells))
-        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
+        out += [r"\bottomrule", r"\end{tabular}"]
+        shown = [a for pa in PAPER_TABLES[table] for a in [status.get(pa)] if a in frames and a in set(sp["activity"])]
+        if shown:
+            text = "; ".join(f"{a}: {frames[a]}" for a in shown)
+            out.append(r"\par\smallskip{\scriptsize Frames. " + latex_escape(text) + ".}")
+        out += [r"\end{table}", ""]
     return "\n".join(out)
 
 
