@@ -323,14 +323,30 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     else:
         Z_mean, Z_std = est.predict(X[test]), None
     predict_seconds = time.perf_counter() - t0
+    row, arrays = _score(
+        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
+        train=train, test=test, Y_true=Y[test], Z_mean=Z_mean, Z_std=Z_std, fit_seconds=fit_seconds,
+        predict_seconds=predict_seconds,
+    )
+    trace = getattr(est, "trace_", None)
+    if isinstance(trace, dict):
+        for key, value in trace.items():
+            a = np.asarray(value)
+            if a.dtype.kind in "biuf":
+                arrays[f"trace_{key}"] = a
+    return row, arrays
 
+
+def _score(spec, *, estimator, params, cv_mode, cv_seconds, transform, train, test, Y_true, Z_mean, Z_std,
+           fit_seconds, predict_seconds):
+    """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
+    transformed pose space."""
     Z_mean = np.asarray(Z_mean, dtype=float)
     if Z_mean.ndim != 2 or Z_mean.shape[0] != test.size:
         raise InputError(
             f"{spec.method}: predict returned shape {Z_mean.shape}; expected ({test.size}, n_outputs)"
         )
     Y_pred = transform.inverse(Z_mean)
-    Y_true = Y[test]
     rms = per_angle_rms(Y_true, Y_pred)
     row = {
         "source": spec.source,
@@ -355,7 +371,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         "versions": package_versions(),
     }
     arrays = {"train": train, "test": test, "y_true": Y_true, "y_pred": Y_pred}
-    if with_std:
+    if Z_std is not None:
         Y_std = inverse_std(transform, Z_mean, np.asarray(Z_std, dtype=float))
         for level in COVERAGE_LEVELS:
             row[f"coverage_{int(round(level * 100))}"] = interval_coverage(Y_true, Y_pred, Y_std, level=level)
@@ -363,13 +379,151 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         arrays["y_std"] = Y_std
     else:
         row["coverage"] = None
+    return _to_builtin(row), arrays
+
+
+# --------------------------------------------------------------------------------------------- MCMC chains
+#: Per-sweep traces whose split R-hat and bulk ESS across chains go into the result row of a split
+#: (those a method does not record are skipped), plus ``test_error``: the test error of each retained
+#: posterior sample (from the estimator's ``predict_draws``, when it has one).
+CONVERGENCE_TRACES = ("log_likelihood", "g_xy", "g_s", "g_nx", "g_ny")
+CONVERGENCE_SERIES = CONVERGENCE_TRACES + ("test_error",)
+
+
+def chain_seed(method_seed, chain):
+    """Sampler seed of chain ``chain`` (0, 1, ...) of a split: ``(method_seed + chain) mod 2**32``.
+
+    Chain 0 uses the method seed itself, so a one-chain run is the first chain of a several-chain run. The
+    estimator turns this seed into its generators' seeds (BayesianSR: ``RandomState(seed)`` draws the seed of
+    a PCG64 generator through NumPy's SeedSequence hashing), so neighbouring seeds give unrelated streams.
+    """
+    return (int(method_seed) + int(chain)) % 2**32
+
+
+def run_chain(spec, features, *, estimator, params, chain):
+    """One MCMC chain of ``spec``'s split: fit with :func:`chain_seed`, predict the test frames.
+
+    Returns a dict of arrays (the chain file): ``train``, ``test``, ``z_mean`` and ``z_var`` (predictive mean
+    and variance per test frame in the transformed pose space; ``z_var`` is absent if the estimator gives no
+    std), ``trace_<name>`` (per-sweep traces), ``draw_error`` (test error in degrees of each retained
+    posterior sample, when the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs),
+    weights)`` in the units of the fitted Y), ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
+    ``predict_seconds``.
+    """
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0])
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
+    seed = chain_seed(spec.method_seed, chain)
+    est = make_estimator(estimator, params, random_state=seed)
+    t0 = time.perf_counter()
+    est.fit(X[train], transform.forward(Y[train]))
+    fit_seconds = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = {"train": train, "test": test}
+    if _supports_std(est):
+        z_mean, z_std = est.predict(X[test], return_std=True)
+        out["z_var"] = np.square(np.asarray(z_std, dtype=float))
+    else:
+        z_mean = est.predict(X[test])
+    out["z_mean"] = np.asarray(z_mean, dtype=float)
+    if hasattr(est, "predict_draws"):
+        draws = np.asarray(est.predict_draws(X[test])[0], dtype=float)
+        if draws.ndim != 3 or draws.shape[0] != test.size:
+            raise InputError(
+                f"{spec.method}: predict_draws returned draws of shape {draws.shape}; expected "
+                f"({test.size}, n_samples, n_outputs)"
+            )
+        out["draw_error"] = np.array(
+            [mean_angle_error(Y[test], transform.inverse(draws[:, i, :])) for i in range(draws.shape[1])]
+        )
+    predict_seconds = time.perf_counter() - t0
     trace = getattr(est, "trace_", None)
     if isinstance(trace, dict):
         for key, value in trace.items():
             a = np.asarray(value)
             if a.dtype.kind in "biuf":
-                arrays[f"trace_{key}"] = a
-    return _to_builtin(row), arrays
+                out[f"trace_{key}"] = a
+    out.update(
+        chain=np.int64(chain), seed=np.int64(seed), n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
+        fit_seconds=np.float64(fit_seconds), predict_seconds=np.float64(predict_seconds),
+    )
+    return out
+
+
+def convergence_summary(chains):
+    """Split R-hat and bulk ESS (ArviZ, rank-normalized; Vehtari et al. 2021) across chains.
+
+    ``chains``: chain dicts of :func:`run_chain`. The per-sweep traces of :data:`CONVERGENCE_TRACES` are used
+    after each chain's burn-in; ``test_error`` is the series of per-retained-sample test errors
+    (``draw_error``). Returns ``{"r_hat_<name>": float, "ess_bulk_<name>": float}`` for every series of
+    :data:`CONVERGENCE_SERIES`, NaN where it was not recorded, with fewer than 2 chains, or with fewer than 4
+    draws per chain.
+    """
+    from .models.diagnostics import chain_summary  # imported here: only pooling jobs need ArviZ
+
+    out = {f"{stat}_{name}": math.nan for name in CONVERGENCE_SERIES for stat in ("r_hat", "ess_bulk")}
+    if len(chains) < 2:
+        return out
+    burn_in = min(int(c.get("n_burn_in", 0)) for c in chains)
+    series = {}
+    for name in CONVERGENCE_TRACES:
+        if all(f"trace_{name}" in c for c in chains):
+            arrs = [np.asarray(c[f"trace_{name}"], dtype=float) for c in chains]
+            if min(a.size for a in arrs) - burn_in >= 4:
+                series[name] = [a[burn_in:] for a in arrs]
+    if all("draw_error" in c for c in chains) and min(np.size(c["draw_error"]) for c in chains) >= 4:
+        series["test_error"] = [np.asarray(c["draw_error"], dtype=float) for c in chains]
+    for name, arrs in series.items():
+        s = chain_summary([{name: a} for a in arrs], burn_in=0, names=(name,))
+        out[f"r_hat_{name}"] = float(s.at[name, "r_hat"])
+        out[f"ess_bulk_{name}"] = float(s.at[name, "ess_bulk"])
+    return out
+
+
+def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv_seconds=None):
+    """The result of a split from its MCMC chains (dicts of :func:`run_chain`, same split, one per chain).
+
+    The prediction is the posterior predictive mean over the retained samples of all chains, each chain
+    weighted equally (every chain keeps the same number of samples); the predictive variance is the mixture's,
+    ``mean_c(var_c + mean_c^2) - mean^2``. The row is :func:`run_job`'s plus ``n_chains``, ``chain_seeds`` and
+    the :func:`convergence_summary`; ``fit_seconds`` and ``predict_seconds`` are summed over chains. The arrays
+    are :func:`run_job`'s plus ``chain_trace_<name>`` (chains, sweeps) and ``chain_draw_error`` (chains, samples).
+    """
+    if not chains:
+        raise InputError(f"{spec.method}: no chains to pool")
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0])
+    for c in chains:
+        if not (np.array_equal(c["train"], train) and np.array_equal(c["test"], test)):
+            raise InputError(f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)")
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
+    means = np.stack([np.asarray(c["z_mean"], dtype=float) for c in chains])
+    z_mean = means.mean(axis=0)
+    z_std = None
+    if all("z_var" in c for c in chains):
+        variances = np.stack([np.asarray(c["z_var"], dtype=float) for c in chains])
+        second = np.mean(variances + means**2, axis=0)
+        z_std = np.sqrt(np.maximum(second - z_mean**2, 0.0))
+    row, arrays = _score(
+        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
+        train=train, test=test, Y_true=Y[test], Z_mean=z_mean, Z_std=z_std,
+        fit_seconds=float(sum(float(c["fit_seconds"]) for c in chains)),
+        predict_seconds=float(sum(float(c["predict_seconds"]) for c in chains)),
+    )
+    row["n_chains"] = len(chains)
+    row["chain_seeds"] = [int(c["seed"]) for c in chains]
+    row.update(_to_builtin(convergence_summary(chains)))
+    names = sorted({k for c in chains for k in c if k.startswith("trace_")})
+    for k in names:
+        if all(k in c for c in chains):
+            arrs = [np.asarray(c[k]) for c in chains]
+            n = min(a.shape[0] for a in arrs)
+            arrays[f"chain_{k}"] = np.stack([a[:n] for a in arrs])
+    if all("draw_error" in c for c in chains):
+        n = min(np.size(c["draw_error"]) for c in chains)
+        arrays["chain_draw_error"] = np.stack([np.asarray(c["draw_error"], dtype=float)[:n] for c in chains])
+    arrays["n_burn_in"] = np.int64(min(int(c.get("n_burn_in", 0)) for c in chains))
+    return row, arrays
 
 
 def write_json(path, obj):
