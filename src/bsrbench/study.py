@@ -5,7 +5,9 @@ Section "Experimental Results"): 600 frames per activity, N in {30, 60, 100, 200
 training and the rest for testing, error = mean over the 57 angles of the per-angle RMS (degrees),
 mean +- std over 10 random splits. A second protocol, ``"contiguous"``, trains on one contiguous block of
 frames and tests on the frames farther than ``gap`` frames from it, so that no test frame has a
-near-duplicate neighbour in the training set (random frames of one sequence do).
+near-duplicate neighbour in the training set (random frames of one sequence do). A third, ``"cross_trial"``,
+needs features that keep the trial of each frame (motion capture: ``trial_index``): whole trials are held
+out as test frames and the N training frames are drawn from the other trials.
 
 Nothing here reads Snakemake objects or the configuration: the workflow scripts pass plain values.
 Estimators are named by dotted path (``"bsrbench.models.bsr:BayesianSR"``) and imported only when used,
@@ -30,7 +32,7 @@ from .metrics import interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
 from .seeds import method_seed, split_seed
 
-PROTOCOLS = ("random", "contiguous")
+PROTOCOLS = ("random", "contiguous", "cross_trial")
 CV_MODES = ("per_size", "per_job", "none")
 #: Nominal levels of the central predictive intervals whose empirical coverage every job records.
 COVERAGE_LEVELS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
@@ -95,19 +97,25 @@ def load_features(path):
         out["angle_names"] = [str(a) for a in data["angle_names"]]
     else:
         out["angle_names"] = [f"angle{i}" for i in range(Y.shape[1])]
+    # Trial of each frame (motion-capture features of several trials; None for the .mat features).
+    out["trials"] = np.asarray(data["trial_index"], dtype=int) if "trial_index" in data else None
     # Column of the root's heading angle (2 for the authors' features, 1 for the CMU BVH joint maps).
     out["heading_column"] = int(data["heading_column"]) if "heading_column" in data else 2
     return out
 
 
 # ----------------------------------------------------------------------------------------------------- split
-def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30):
+def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30, trials=None):
     """Indices ``(train, test)`` of one split, both sorted.
 
     ``random``: ``n_train`` frames drawn without replacement, the rest are test (the paper's protocol).
     ``contiguous``: the training frames are one block ``[s, s + n_train)`` with a random start ``s``;
     the test frames are those more than ``gap`` frames away from the block.
-    Raises InputError if fewer than ``min_test`` test frames remain.
+    ``cross_trial``: ``trials`` (the trial of each frame) is required; the trials are shuffled and held out
+    in that order until at least ``min_test`` frames are test frames (all frames of those trials); the
+    ``n_train`` training frames are drawn without replacement from the other trials' frames, so that no
+    test frame has a training frame of its own trial.
+    Raises InputError if fewer than ``min_test`` test frames remain (or, cross_trial, too few training frames).
     """
     n_frames, n_train, min_test, gap = int(n_frames), int(n_train), int(min_test), int(gap)
     if protocol not in PROTOCOLS:
@@ -117,6 +125,8 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     if gap < 0:
         raise InputError(f"gap must be >= 0; got {gap}")
     rng = np.random.default_rng(seed)
+    if protocol == "cross_trial":
+        return _cross_trial_split(n_frames, n_train, rng, min_test, trials)
     if protocol == "random":
         if n_frames - n_train < min_test:
             raise InputError(
@@ -140,8 +150,38 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     return train, test
 
 
+def _cross_trial_split(n_frames, n_train, rng, min_test, trials):
+    if trials is None:
+        raise InputError(
+            "protocol 'cross_trial' needs the trial of each frame (array 'trial_index' of a motion-capture "
+            "features file); these features have none (use protocol 'random' or 'contiguous')"
+        )
+    trials = np.asarray(trials)
+    if trials.shape != (n_frames,):
+        raise InputError(f"cross_trial: trial_index has shape {trials.shape}; expected ({n_frames},)")
+    ids = np.unique(trials)
+    if ids.size < 2:
+        raise InputError(f"cross_trial: the features hold {ids.size} trial; at least 2 are needed")
+    held, n_test = [], 0
+    for t in rng.permutation(ids):
+        if n_test >= min_test:
+            break
+        held.append(t)
+        n_test += int(np.sum(trials == t))
+    test = np.flatnonzero(np.isin(trials, held))
+    pool = np.flatnonzero(~np.isin(trials, held))
+    if n_test < min_test or pool.size < n_train:
+        raise InputError(
+            f"cross_trial: holding out trials {sorted(int(t) for t in held)} gives {n_test} test frames "
+            f"(min_test={min_test}) and leaves {pool.size} frames of {ids.size - len(held)} trials for "
+            f"n_train={n_train}"
+        )
+    return np.sort(rng.choice(pool, size=n_train, replace=False)), test
+
+
 def max_n_train(n_frames, *, protocol="random", min_test=100, gap=30):
-    """Largest n_train that :func:`make_split` accepts (used to check configurations before running)."""
+    """Largest n_train that :func:`make_split` accepts (used to check configurations before running;
+    for ``cross_trial`` an upper bound, since it depends on the trial lengths)."""
     if protocol == "contiguous":
         return int(n_frames - min_test - gap)  # block at one end, gap on one side
     return int(n_frames - min_test)
@@ -231,7 +271,8 @@ class JobSpec:
             paper_activity=getattr(params, "paper_activity", "") or "",
         )
 
-    def split(self, n_frames):
+    def split(self, n_frames, trials=None):
+        """``(train, test)`` of this job's split (``trials``: the trial of each frame, for cross_trial)."""
         return make_split(
             n_frames,
             self.n_train,
@@ -239,6 +280,7 @@ class JobSpec:
             seed=split_seed(self.source, self.activity, self.n_train, self.seed),
             min_test=self.min_test,
             gap=self.gap,
+            trials=trials,
         )
 
     @property
@@ -259,7 +301,7 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
     from .tuning import tune  # imported here: only CV jobs need it
 
     X, Y = features["X"], features["Y"]
-    train, _ = spec.split(X.shape[0])
+    train, _ = spec.split(X.shape[0], features.get("trials"))
     grid = {k: list(v) for k, v in (grid or {}).items()}
     est = make_estimator(estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed)
     t0 = time.perf_counter()
@@ -308,7 +350,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     (test indices, true and predicted angles, predictive std if any, and the sampler trace if any).
     """
     X, Y = features["X"], features["Y"]
-    train, test = spec.split(X.shape[0])
+    train, test = spec.split(X.shape[0], features.get("trials"))
     transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
     est = make_estimator(estimator, params, random_state=spec.method_seed)
 
@@ -411,7 +453,7 @@ def run_chain(spec, features, *, estimator, params, chain):
     ``predict_seconds``.
     """
     X, Y = features["X"], features["Y"]
-    train, test = spec.split(X.shape[0])
+    train, test = spec.split(X.shape[0], features.get("trials"))
     transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
     seed = chain_seed(spec.method_seed, chain)
     est = make_estimator(estimator, params, random_state=seed)
@@ -492,7 +534,7 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
     if not chains:
         raise InputError(f"{spec.method}: no chains to pool")
     X, Y = features["X"], features["Y"]
-    train, test = spec.split(X.shape[0])
+    train, test = spec.split(X.shape[0], features.get("trials"))
     for c in chains:
         if not (np.array_equal(c["train"], train) and np.array_equal(c["test"], test)):
             raise InputError(f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)")

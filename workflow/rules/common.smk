@@ -10,7 +10,7 @@ validate(config, "../schemas/config.schema.yaml")
 
 
 wildcard_constraints:
-    protocol="random|contiguous",
+    protocol="random|contiguous|cross_trial",
     source="[a-z0-9_]+",
     activity="[a-z0-9_]+",
     method="[A-Za-z0-9]+",
@@ -67,6 +67,12 @@ def _check_study_config():
                 raise ValueError(
                     f"config key 'study_activities.{source}': unknown activity {a!r}; "
                     f"source {source!r} has {sorted(known)}"
+                )
+            if "cross_trial" in config["protocols"] and (not is_motion(source, a) or len(dataset(source, a)["files"]) < 2):
+                raise ValueError(
+                    f"config key 'protocols': cross_trial needs a motion-capture data set of several trials; "
+                    f"{source}/{a} is format {dataset(source, a)['format']!r} with "
+                    f"{len(dataset(source, a)['files'])} file(s) (study it with random or contiguous)"
                 )
             for protocol in config["protocols"]:
                 limit = max_n_train(
