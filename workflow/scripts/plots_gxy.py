@@ -23,7 +23,7 @@ for p in sm.input.predictions:
              & (df["method"] == method) & (df["n_train"] == int(n[1:])) & (df["seed"] == int(seed[4:]))]
     params = json.loads(row["params"].iloc[0]) if len(row) else {}
     k = params.get("n_atoms", "?")
-    rel = ">=" if isinstance(k, int) and k >= int(n[1:]) else "<"
+    rel = "≥" if isinstance(k, int) and k >= int(n[1:]) else "<"
     title = f"{labels.get(method, method)}: K={k} {rel} N={n[1:]}"
     if params.get("a_xy") is not None:
         title += f"\nGamma({params['a_xy']:g}, {params.get('b_xy', params.get('b0', 1e-6)):g}) prior"

@@ -308,6 +308,19 @@ def chain_traces(arrays):
     return out
 
 
+def _log_axis(ax):
+    """A log y axis with plain tick labels (a trace often spans less than a decade)."""
+    from matplotlib.ticker import FuncFormatter
+
+    ax.set_yscale("log")
+    fmt = FuncFormatter(lambda v, _: f"{v:.3g}")
+    ax.yaxis.set_major_formatter(fmt)
+    ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
+    lo, hi = ax.get_ylim()
+    if hi / lo < 10:  # no decade tick inside: label the minor ticks instead
+        ax.yaxis.set_minor_formatter(fmt)
+
+
 def _informative(a):
     """A trace worth a panel: finite values that are not the same constant in every chain."""
     f = a[np.isfinite(a)]
@@ -351,10 +364,12 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
                 ax.axvspan(0, n_burn_in, color="0.9", zorder=0)
                 ax.axvline(n_burn_in, color="0.3", ls="--", lw=0.8)
             if name in _PRECISIONS and np.all(a[np.isfinite(a)] > 0):
-                ax.set_yscale("log")
+                _log_axis(ax)
             ax.set_xlabel("Gibbs sweep")
             ax.set_title(TRACE_LABELS.get(name, name.replace("_", " ")))
         ax.grid(alpha=0.3)
+    if n_chains > 1 and names:
+        fig.axes[0].legend(fontsize=6, ncol=min(n_chains, 4), loc="best")
     if not names:
         ax = fig.add_subplot(gs[0, 0])
         ax.text(0.5, 0.5, "the fit saved no trace", ha="center", va="center")
@@ -385,7 +400,7 @@ def plot_gxy(items, *, n_burn_in=None):
             ax.plot(np.arange(tr.shape[1]), tr[k], lw=0.6, color=f"C{k % 10}")
         if burn:
             ax.axvspan(0, burn, color="0.9", zorder=0)
-        ax.set_yscale("log")
+        _log_axis(ax)
         ax.set_title(title, fontsize=8)
         ax.set_xlabel("Gibbs sweep")
         ax.grid(alpha=0.3)
