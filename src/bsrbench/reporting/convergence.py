@@ -75,18 +75,19 @@ def _num(x, digits=2):
 
 
 def convergence_latex(df, *, labels):
-    """LaTeX table of the convergence per (method, N), over the activities of each protocol."""
+    """LaTeX tables of the convergence per method, over the activities, one table per (protocol, N)."""
     df = with_convergence_columns(df)
     d = df[df["n_chains"].fillna(1) > 1]
     if d.empty:
         return (r"\noindent No method was run with several chains, so no R-hat was computed "
                 r"(set \texttt{methods.<M>.chains} $\geq 2$, e.g.\ \texttt{config/ablation.yaml}).")
     out = []
-    for protocol, dp in d.groupby("protocol", sort=True):
+    for (protocol, n_train), dp in d.groupby(["protocol", "n_train"], sort=True):
         acts = ", ".join(sorted(set(dp["activity"])))
         out += [
             r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
-            rf"\caption{{Convergence, protocol ``{latex_escape(protocol)}'' (activities: {latex_escape(acts)}): "
+            rf"\caption{{Convergence, protocol ``{latex_escape(protocol)}'', $N={int(n_train)}$ (activities: "
+            rf"{latex_escape(acts)}): "
             r"largest split $\hat R$ over splits and smallest bulk ESS over splits, across the chains of each split; "
             r"$\ell$: log-likelihood, err: test error of each retained sample; conv.: share of splits with "
             rf"$\hat R < {RHAT_OK}$ for both $\ell$ and $\gamma_{{xy}}$.}}",
