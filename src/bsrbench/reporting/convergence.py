@@ -235,6 +235,16 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
             + f" of {len(per)}; share of converged splits per variant: "
             + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in per.items()) + "."
         )
+        conv_good = conv[conv["method"].isin(good)]
+        if len(conv_good) and conv_good["r_hat_g_s"].notna().any():
+            out.append(
+                f"For the converged variants the largest $\\hat R$ of $\\gamma_s$ is "
+                f"{float(conv_good['r_hat_g_s'].max()):.2f} and the smallest bulk ESS of the log-likelihood "
+                f"{float(conv_good['ess_bulk_log_likelihood'].min()):.0f}; for the others the largest "
+                f"$\\hat R$ of the log-likelihood is "
+                + (f"{float(conv[~conv['method'].isin(good)]['r_hat_log_likelihood'].max()):.2f}."
+                   if (~conv["method"].isin(good)).any() else "not applicable (all converged).")
+            )
         both = []
         for m in good:
             cm = summarize(df)
@@ -310,16 +320,17 @@ def chain_traces(arrays):
 
 
 def _log_axis(ax):
-    """A log y axis with plain tick labels (a trace often spans less than a decade)."""
-    from matplotlib.ticker import FuncFormatter
+    """A log y axis; plain labels on the minor ticks when the trace spans less than a decade."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
     ax.set_yscale("log")
-    fmt = FuncFormatter(lambda v, _: f"{v:.3g}")
-    ax.yaxis.set_major_formatter(fmt)
-    ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _: ""))
     lo, hi = ax.get_ylim()
-    if hi / lo < 10:  # no decade tick inside: label the minor ticks instead
+    if hi / lo < 10:  # at most one decade tick inside: label the minor ticks, plainly
+        fmt = FuncFormatter(lambda v, _: f"{v:.3g}")
+        ax.yaxis.set_major_formatter(fmt)
         ax.yaxis.set_minor_formatter(fmt)
+    else:
+        ax.yaxis.set_minor_formatter(NullFormatter())
 
 
 def _informative(a):
