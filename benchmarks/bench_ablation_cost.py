@@ -10,6 +10,7 @@ and N, the counts of ``snakemake -n``) of these CPU seconds, divided by the core
 the baselines and their CV come on top (the script prints the baselines' measured fit and CV times when a
 slice of the workflow has been run, from results/fit/.../seed100.json and results/cv/.../seed100.json).
 
+    snakemake --cores 1 results/features/hsc/golf.npz     # the features, once
     .venv/bin/python benchmarks/bench_ablation_cost.py [--cores 2] [--activity golf]
 """
 
