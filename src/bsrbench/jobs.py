@@ -14,16 +14,23 @@ def _ns(d):
     return SimpleNamespace(**d)
 
 
+def _params(inp, p):
+    """The job's estimator parameters and CV seconds: the CV's choice if the job reads one, else the fixed ones."""
+    from .study import read_json
+
+    if inp.get("cv"):
+        cv = read_json(inp["cv"])
+        return cv["best_params"], cv["cv_seconds"]
+    return dict(p.fixed), None
+
+
 def fit(job):
     """Rule fit: one (protocol, source, activity, method, n_train, seed): fit, predict, score, result row."""
-    from .study import JobSpec, load_features, read_json, run_job, write_arrays, write_json
+    from .study import JobSpec, load_features, run_job, write_arrays, write_json
 
     w, p, inp, out = _ns(job["wildcards"]), _ns(job["params"]), job["input"], job["output"]
     spec = JobSpec.from_wildcards(w, p)
-    params, cv_seconds = dict(p.fixed), None
-    if inp.get("cv"):
-        cv = read_json(inp["cv"])
-        params, cv_seconds = cv["best_params"], cv["cv_seconds"]
+    params, cv_seconds = _params(inp, p)
     row, arrays = run_job(
         spec,
         load_features(inp["features"]),
@@ -54,3 +61,42 @@ def cv(job):
     )
     write_json(job["output"]["json"], result)
     print(f"{spec}: chose {result['best_params']} (CV error {result['best_score']})", file=sys.stderr)
+
+
+def fit_chain(job):
+    """Rule fit_chain: one MCMC chain (wildcard ``chain``) of one split; writes the chain file."""
+    from .study import JobSpec, load_features, run_chain, write_arrays
+
+    w, p, inp = _ns(job["wildcards"]), _ns(job["params"]), job["input"]
+    spec = JobSpec.from_wildcards(w, p)
+    params, _ = _params(inp, p)
+    arrays = run_chain(spec, load_features(inp["features"]), estimator=p.estimator, params=params,
+                       chain=int(w.chain))
+    write_arrays(job["output"]["chain"], arrays)
+    print(f"{spec}: chain {w.chain} (seed {int(arrays['seed'])}), fit {float(arrays['fit_seconds']):.2f} s",
+          file=sys.stderr)
+
+
+def pool(job):
+    """Rule pool_chains: the result row and predictions of a split from its chain files."""
+    import numpy as np
+
+    from .errors import DataFileError
+    from .study import JobSpec, load_features, pool_chains, write_arrays, write_json
+
+    w, p, inp, out = _ns(job["wildcards"]), _ns(job["params"]), job["input"], job["output"]
+    spec = JobSpec.from_wildcards(w, p)
+    params, cv_seconds = _params(inp, p)
+    chains = []
+    for path in inp["chains"]:
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                chains.append({k: f[k] for k in f.files})
+        except (OSError, ValueError) as exc:
+            raise DataFileError(path, f"cannot read the chain file ({exc})") from exc
+    row, arrays = pool_chains(spec, load_features(inp["features"]), chains, estimator=p.estimator,
+                              params=params, cv_mode=p.cv_mode, cv_seconds=cv_seconds)
+    write_arrays(out["predictions"], arrays)
+    write_json(out["row"], row)
+    print(f"{spec}: {len(chains)} chains, error {row['error']:.3f} deg, R-hat(log-lik) "
+          f"{row.get('r_hat_log_likelihood')}", file=sys.stderr)

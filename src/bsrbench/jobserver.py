@@ -55,6 +55,7 @@ PRELOAD = (
     "bsrbench.models.tgp",
     "bsrbench.models.sr",
     "bsrbench.models.ddl",
+    "arviz",  # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
 )
 _PKG = Path(__file__).resolve().parent
 #: Environment variables that set the thread counts of numba and of the BLAS/OpenMP libraries.
@@ -135,7 +136,10 @@ def _resolve(target):
 def _limit_threads(threads):
     """Limit numba and BLAS/OpenMP to ``threads`` in an already-initialized process."""
     for var in _THREAD_VARS:
-        os.environ[var] = str(threads)  # for any subprocess of the job
+        if var != "NUMBA_NUM_THREADS":
+            os.environ[var] = str(threads)  # for any subprocess of the job
+    # NUMBA_NUM_THREADS stays the server's: numba re-reads the environment whenever it compiles (e.g. ArviZ's
+    # ufuncs in a pool_chains job) and refuses a value other than that of its launched thread pool.
     try:
         import numba
 

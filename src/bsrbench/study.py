@@ -5,7 +5,9 @@ Section "Experimental Results"): 600 frames per activity, N in {30, 60, 100, 200
 training and the rest for testing, error = mean over the 57 angles of the per-angle RMS (degrees),
 mean +- std over 10 random splits. A second protocol, ``"contiguous"``, trains on one contiguous block of
 frames and tests on the frames farther than ``gap`` frames from it, so that no test frame has a
-near-duplicate neighbour in the training set (random frames of one sequence do).
+near-duplicate neighbour in the training set (random frames of one sequence do). A third, ``"cross_trial"``,
+needs features that keep the trial of each frame (motion capture: ``trial_index``): whole trials are held
+out as test frames and the N training frames are drawn from the other trials.
 
 Nothing here reads Snakemake objects or the configuration: the workflow scripts pass plain values.
 Estimators are named by dotted path (``"bsrbench.models.bsr:BayesianSR"``) and imported only when used,
@@ -30,7 +32,7 @@ from .metrics import interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
 from .seeds import method_seed, split_seed
 
-PROTOCOLS = ("random", "contiguous")
+PROTOCOLS = ("random", "contiguous", "cross_trial")
 CV_MODES = ("per_size", "per_job", "none")
 #: Nominal levels of the central predictive intervals whose empirical coverage every job records.
 COVERAGE_LEVELS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
@@ -95,19 +97,25 @@ def load_features(path):
         out["angle_names"] = [str(a) for a in data["angle_names"]]
     else:
         out["angle_names"] = [f"angle{i}" for i in range(Y.shape[1])]
+    # Trial of each frame (motion-capture features of several trials; None for the .mat features).
+    out["trials"] = np.asarray(data["trial_index"], dtype=int) if "trial_index" in data else None
     # Column of the root's heading angle (2 for the authors' features, 1 for the CMU BVH joint maps).
     out["heading_column"] = int(data["heading_column"]) if "heading_column" in data else 2
     return out
 
 
 # ----------------------------------------------------------------------------------------------------- split
-def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30):
+def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30, trials=None):
     """Indices ``(train, test)`` of one split, both sorted.
 
     ``random``: ``n_train`` frames drawn without replacement, the rest are test (the paper's protocol).
     ``contiguous``: the training frames are one block ``[s, s + n_train)`` with a random start ``s``;
     the test frames are those more than ``gap`` frames away from the block.
-    Raises InputError if fewer than ``min_test`` test frames remain.
+    ``cross_trial``: ``trials`` (the trial of each frame) is required; the trials are shuffled and held out
+    in that order until at least ``min_test`` frames are test frames (all frames of those trials); the
+    ``n_train`` training frames are drawn without replacement from the other trials' frames, so that no
+    test frame has a training frame of its own trial.
+    Raises InputError if fewer than ``min_test`` test frames remain (or, cross_trial, too few training frames).
     """
     n_frames, n_train, min_test, gap = int(n_frames), int(n_train), int(min_test), int(gap)
     if protocol not in PROTOCOLS:
@@ -117,6 +125,8 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     if gap < 0:
         raise InputError(f"gap must be >= 0; got {gap}")
     rng = np.random.default_rng(seed)
+    if protocol == "cross_trial":
+        return _cross_trial_split(n_frames, n_train, rng, min_test, trials)
     if protocol == "random":
         if n_frames - n_train < min_test:
             raise InputError(
@@ -140,8 +150,38 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     return train, test
 
 
+def _cross_trial_split(n_frames, n_train, rng, min_test, trials):
+    if trials is None:
+        raise InputError(
+            "protocol 'cross_trial' needs the trial of each frame (array 'trial_index' of a motion-capture "
+            "features file); these features have none (use protocol 'random' or 'contiguous')"
+        )
+    trials = np.asarray(trials)
+    if trials.shape != (n_frames,):
+        raise InputError(f"cross_trial: trial_index has shape {trials.shape}; expected ({n_frames},)")
+    ids = np.unique(trials)
+    if ids.size < 2:
+        raise InputError(f"cross_trial: the features hold {ids.size} trial; at least 2 are needed")
+    held, n_test = [], 0
+    for t in rng.permutation(ids):
+        if n_test >= min_test:
+            break
+        held.append(t)
+        n_test += int(np.sum(trials == t))
+    test = np.flatnonzero(np.isin(trials, held))
+    pool = np.flatnonzero(~np.isin(trials, held))
+    if n_test < min_test or pool.size < n_train:
+        raise InputError(
+            f"cross_trial: holding out trials {sorted(int(t) for t in held)} gives {n_test} test frames "
+            f"(min_test={min_test}) and leaves {pool.size} frames of {ids.size - len(held)} trials for "
+            f"n_train={n_train}"
+        )
+    return np.sort(rng.choice(pool, size=n_train, replace=False)), test
+
+
 def max_n_train(n_frames, *, protocol="random", min_test=100, gap=30):
-    """Largest n_train that :func:`make_split` accepts (used to check configurations before running)."""
+    """Largest n_train that :func:`make_split` accepts (used to check configurations before running;
+    for ``cross_trial`` an upper bound, since it depends on the trial lengths)."""
     if protocol == "contiguous":
         return int(n_frames - min_test - gap)  # block at one end, gap on one side
     return int(n_frames - min_test)
@@ -231,7 +271,8 @@ class JobSpec:
             paper_activity=getattr(params, "paper_activity", "") or "",
         )
 
-    def split(self, n_frames):
+    def split(self, n_frames, trials=None):
+        """``(train, test)`` of this job's split (``trials``: the trial of each frame, for cross_trial)."""
         return make_split(
             n_frames,
             self.n_train,
@@ -239,6 +280,7 @@ class JobSpec:
             seed=split_seed(self.source, self.activity, self.n_train, self.seed),
             min_test=self.min_test,
             gap=self.gap,
+            trials=trials,
         )
 
     @property
@@ -259,7 +301,7 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
     from .tuning import tune  # imported here: only CV jobs need it
 
     X, Y = features["X"], features["Y"]
-    train, _ = spec.split(X.shape[0])
+    train, _ = spec.split(X.shape[0], features.get("trials"))
     grid = {k: list(v) for k, v in (grid or {}).items()}
     est = make_estimator(estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed)
     t0 = time.perf_counter()
@@ -308,7 +350,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     (test indices, true and predicted angles, predictive std if any, and the sampler trace if any).
     """
     X, Y = features["X"], features["Y"]
-    train, test = spec.split(X.shape[0])
+    train, test = spec.split(X.shape[0], features.get("trials"))
     transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
     est = make_estimator(estimator, params, random_state=spec.method_seed)
 
@@ -323,14 +365,30 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     else:
         Z_mean, Z_std = est.predict(X[test]), None
     predict_seconds = time.perf_counter() - t0
+    row, arrays = _score(
+        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
+        train=train, test=test, Y_true=Y[test], Z_mean=Z_mean, Z_std=Z_std, fit_seconds=fit_seconds,
+        predict_seconds=predict_seconds,
+    )
+    trace = getattr(est, "trace_", None)
+    if isinstance(trace, dict):
+        for key, value in trace.items():
+            a = np.asarray(value)
+            if a.dtype.kind in "biuf":
+                arrays[f"trace_{key}"] = a
+    return row, arrays
 
+
+def _score(spec, *, estimator, params, cv_mode, cv_seconds, transform, train, test, Y_true, Z_mean, Z_std,
+           fit_seconds, predict_seconds):
+    """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
+    transformed pose space."""
     Z_mean = np.asarray(Z_mean, dtype=float)
     if Z_mean.ndim != 2 or Z_mean.shape[0] != test.size:
         raise InputError(
             f"{spec.method}: predict returned shape {Z_mean.shape}; expected ({test.size}, n_outputs)"
         )
     Y_pred = transform.inverse(Z_mean)
-    Y_true = Y[test]
     rms = per_angle_rms(Y_true, Y_pred)
     row = {
         "source": spec.source,
@@ -355,7 +413,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         "versions": package_versions(),
     }
     arrays = {"train": train, "test": test, "y_true": Y_true, "y_pred": Y_pred}
-    if with_std:
+    if Z_std is not None:
         Y_std = inverse_std(transform, Z_mean, np.asarray(Z_std, dtype=float))
         for level in COVERAGE_LEVELS:
             row[f"coverage_{int(round(level * 100))}"] = interval_coverage(Y_true, Y_pred, Y_std, level=level)
@@ -363,13 +421,151 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         arrays["y_std"] = Y_std
     else:
         row["coverage"] = None
+    return _to_builtin(row), arrays
+
+
+# --------------------------------------------------------------------------------------------- MCMC chains
+#: Per-sweep traces whose split R-hat and bulk ESS across chains go into the result row of a split
+#: (those a method does not record are skipped), plus ``test_error``: the test error of each retained
+#: posterior sample (from the estimator's ``predict_draws``, when it has one).
+CONVERGENCE_TRACES = ("log_likelihood", "g_xy", "g_s", "g_nx", "g_ny")
+CONVERGENCE_SERIES = CONVERGENCE_TRACES + ("test_error",)
+
+
+def chain_seed(method_seed, chain):
+    """Sampler seed of chain ``chain`` (0, 1, ...) of a split: ``(method_seed + chain) mod 2**32``.
+
+    Chain 0 uses the method seed itself, so a one-chain run is the first chain of a several-chain run. The
+    estimator turns this seed into its generators' seeds (BayesianSR: ``RandomState(seed)`` draws the seed of
+    a PCG64 generator through NumPy's SeedSequence hashing), so neighbouring seeds give unrelated streams.
+    """
+    return (int(method_seed) + int(chain)) % 2**32
+
+
+def run_chain(spec, features, *, estimator, params, chain):
+    """One MCMC chain of ``spec``'s split: fit with :func:`chain_seed`, predict the test frames.
+
+    Returns a dict of arrays (the chain file): ``train``, ``test``, ``z_mean`` and ``z_var`` (predictive mean
+    and variance per test frame in the transformed pose space; ``z_var`` is absent if the estimator gives no
+    std), ``trace_<name>`` (per-sweep traces), ``draw_error`` (test error in degrees of each retained
+    posterior sample, when the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs),
+    weights)`` in the units of the fitted Y), ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
+    ``predict_seconds``.
+    """
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0], features.get("trials"))
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
+    seed = chain_seed(spec.method_seed, chain)
+    est = make_estimator(estimator, params, random_state=seed)
+    t0 = time.perf_counter()
+    est.fit(X[train], transform.forward(Y[train]))
+    fit_seconds = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = {"train": train, "test": test}
+    if _supports_std(est):
+        z_mean, z_std = est.predict(X[test], return_std=True)
+        out["z_var"] = np.square(np.asarray(z_std, dtype=float))
+    else:
+        z_mean = est.predict(X[test])
+    out["z_mean"] = np.asarray(z_mean, dtype=float)
+    if hasattr(est, "predict_draws"):
+        draws = np.asarray(est.predict_draws(X[test])[0], dtype=float)
+        if draws.ndim != 3 or draws.shape[0] != test.size:
+            raise InputError(
+                f"{spec.method}: predict_draws returned draws of shape {draws.shape}; expected "
+                f"({test.size}, n_samples, n_outputs)"
+            )
+        out["draw_error"] = np.array(
+            [mean_angle_error(Y[test], transform.inverse(draws[:, i, :])) for i in range(draws.shape[1])]
+        )
+    predict_seconds = time.perf_counter() - t0
     trace = getattr(est, "trace_", None)
     if isinstance(trace, dict):
         for key, value in trace.items():
             a = np.asarray(value)
             if a.dtype.kind in "biuf":
-                arrays[f"trace_{key}"] = a
-    return _to_builtin(row), arrays
+                out[f"trace_{key}"] = a
+    out.update(
+        chain=np.int64(chain), seed=np.int64(seed), n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
+        fit_seconds=np.float64(fit_seconds), predict_seconds=np.float64(predict_seconds),
+    )
+    return out
+
+
+def convergence_summary(chains):
+    """Split R-hat and bulk ESS (ArviZ, rank-normalized; Vehtari et al. 2021) across chains.
+
+    ``chains``: chain dicts of :func:`run_chain`. The per-sweep traces of :data:`CONVERGENCE_TRACES` are used
+    after each chain's burn-in; ``test_error`` is the series of per-retained-sample test errors
+    (``draw_error``). Returns ``{"r_hat_<name>": float, "ess_bulk_<name>": float}`` for every series of
+    :data:`CONVERGENCE_SERIES`, NaN where it was not recorded, with fewer than 2 chains, or with fewer than 4
+    draws per chain.
+    """
+    from .models.diagnostics import chain_summary  # imported here: only pooling jobs need ArviZ
+
+    out = {f"{stat}_{name}": math.nan for name in CONVERGENCE_SERIES for stat in ("r_hat", "ess_bulk")}
+    if len(chains) < 2:
+        return out
+    burn_in = min(int(c.get("n_burn_in", 0)) for c in chains)
+    series = {}
+    for name in CONVERGENCE_TRACES:
+        if all(f"trace_{name}" in c for c in chains):
+            arrs = [np.asarray(c[f"trace_{name}"], dtype=float) for c in chains]
+            if min(a.size for a in arrs) - burn_in >= 4:
+                series[name] = [a[burn_in:] for a in arrs]
+    if all("draw_error" in c for c in chains) and min(np.size(c["draw_error"]) for c in chains) >= 4:
+        series["test_error"] = [np.asarray(c["draw_error"], dtype=float) for c in chains]
+    for name, arrs in series.items():
+        s = chain_summary([{name: a} for a in arrs], burn_in=0, names=(name,))
+        out[f"r_hat_{name}"] = float(s.at[name, "r_hat"])
+        out[f"ess_bulk_{name}"] = float(s.at[name, "ess_bulk"])
+    return out
+
+
+def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv_seconds=None):
+    """The result of a split from its MCMC chains (dicts of :func:`run_chain`, same split, one per chain).
+
+    The prediction is the posterior predictive mean over the retained samples of all chains, each chain
+    weighted equally (every chain keeps the same number of samples); the predictive variance is the mixture's,
+    ``mean_c(var_c + mean_c^2) - mean^2``. The row is :func:`run_job`'s plus ``n_chains``, ``chain_seeds`` and
+    the :func:`convergence_summary`; ``fit_seconds`` and ``predict_seconds`` are summed over chains. The arrays
+    are :func:`run_job`'s plus ``chain_trace_<name>`` (chains, sweeps) and ``chain_draw_error`` (chains, samples).
+    """
+    if not chains:
+        raise InputError(f"{spec.method}: no chains to pool")
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0], features.get("trials"))
+    for c in chains:
+        if not (np.array_equal(c["train"], train) and np.array_equal(c["test"], test)):
+            raise InputError(f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)")
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
+    means = np.stack([np.asarray(c["z_mean"], dtype=float) for c in chains])
+    z_mean = means.mean(axis=0)
+    z_std = None
+    if all("z_var" in c for c in chains):
+        variances = np.stack([np.asarray(c["z_var"], dtype=float) for c in chains])
+        second = np.mean(variances + means**2, axis=0)
+        z_std = np.sqrt(np.maximum(second - z_mean**2, 0.0))
+    row, arrays = _score(
+        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
+        train=train, test=test, Y_true=Y[test], Z_mean=z_mean, Z_std=z_std,
+        fit_seconds=float(sum(float(c["fit_seconds"]) for c in chains)),
+        predict_seconds=float(sum(float(c["predict_seconds"]) for c in chains)),
+    )
+    row["n_chains"] = len(chains)
+    row["chain_seeds"] = [int(c["seed"]) for c in chains]
+    row.update(_to_builtin(convergence_summary(chains)))
+    names = sorted({k for c in chains for k in c if k.startswith("trace_")})
+    for k in names:
+        if all(k in c for c in chains):
+            arrs = [np.asarray(c[k]) for c in chains]
+            n = min(a.shape[0] for a in arrs)
+            arrays[f"chain_{k}"] = np.stack([a[:n] for a in arrs])
+    if all("draw_error" in c for c in chains):
+        n = min(np.size(c["draw_error"]) for c in chains)
+        arrays["chain_draw_error"] = np.stack([np.asarray(c["draw_error"], dtype=float)[:n] for c in chains])
+    arrays["n_burn_in"] = np.int64(min(int(c.get("n_burn_in", 0)) for c in chains))
+    return row, arrays
 
 
 def write_json(path, obj):

@@ -10,12 +10,13 @@ validate(config, "../schemas/config.schema.yaml")
 
 
 wildcard_constraints:
-    protocol="random|contiguous",
+    protocol="random|contiguous|cross_trial",
     source="[a-z0-9_]+",
     activity="[a-z0-9_]+",
     method="[A-Za-z0-9]+",
     n_train="[0-9]+",
     seed="[0-9]+",
+    chain="[0-9]+",
     table="I|II",
 
 
@@ -47,6 +48,11 @@ def _check_study_config():
             raise ValueError(
                 f"config key 'report.{key}': unknown method {m!r}; defined under 'methods': {sorted(methods)}"
             )
+    for m in config["report"].get("gxy_methods") or []:
+        if m not in config["run"]:
+            raise ValueError(
+                f"config key 'report.gxy_methods': method {m!r} is not run; 'run' lists {config['run']}"
+            )
     for m in config["report"]["subjective_methods"]:
         if m not in methods:
             raise ValueError(
@@ -66,6 +72,12 @@ def _check_study_config():
                 raise ValueError(
                     f"config key 'study_activities.{source}': unknown activity {a!r}; "
                     f"source {source!r} has {sorted(known)}"
+                )
+            if "cross_trial" in config["protocols"] and (not is_motion(source, a) or len(dataset(source, a)["files"]) < 2):
+                raise ValueError(
+                    f"config key 'protocols': cross_trial needs a motion-capture data set of several trials; "
+                    f"{source}/{a} is format {dataset(source, a)['format']!r} with "
+                    f"{len(dataset(source, a)['files'])} file(s) (study it with random or contiguous)"
                 )
             for protocol in config["protocols"]:
                 limit = max_n_train(
@@ -115,8 +127,39 @@ def method_labels():
     return {m: method_setting(m).get("label", m) for m in run_methods()}
 
 
+def first_seed():
+    """The first split seed (config key seed_start; 0 in the paper protocol)."""
+    return int(config.get("seed_start", 0))
+
+
 def seeds():
-    return list(range(config["n_seeds"]))
+    """Split seeds seed_start .. seed_start + n_seeds - 1."""
+    return list(range(first_seed(), first_seed() + config["n_seeds"]))
+
+
+def n_chains(method):
+    """MCMC chains per split of a method (config key methods.<M>.chains, default 1)."""
+    return int(method_setting(method).get("chains", 1))
+
+
+def chained_methods():
+    """Methods run with several chains per split (rules fit_chain and pool_chains instead of fit)."""
+    return [m for m in config["methods"] if n_chains(m) > 1]
+
+
+def method_regex(chained):
+    """Wildcard regex of the method names run with several chains (chained=True) or with one."""
+    names = [m for m in config["methods"] if (n_chains(m) > 1) == chained]
+    return "|".join(names) if names else "(?!x)x"
+
+
+def chain_inputs(wildcards):
+    """The chain files of a split, one per chain of the method."""
+    w = wildcards
+    return [
+        f"results/fit/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{w.seed}/chain{c}.npz"
+        for c in range(n_chains(w.method))
+    ]
 
 
 def study_pairs():
@@ -178,7 +221,7 @@ def cv_input(wildcards):
     mode = config["cv"]["mode"]
     if mode == "none" or method_grid(wildcards) == {}:
         return []
-    seed = 0 if mode == "per_size" else wildcards.seed
+    seed = first_seed() if mode == "per_size" else wildcards.seed
     w = wildcards
     return f"results/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
 
@@ -193,6 +236,15 @@ def method_grid(wildcards):
 
         grid = default_grid(method_setting(wildcards.method)["estimator"])
     return grid
+
+
+def pm_variants():
+    """The PM variants of the study: run methods with the estimator of report.trace_method (else of PM)."""
+    ref = config["report"].get("trace_method") or "PM"
+    if ref not in config["methods"]:
+        return []
+    est = method_setting(ref)["estimator"]
+    return [m for m in run_methods() if method_setting(m)["estimator"] == est]
 
 
 def report_sources():
@@ -210,8 +262,16 @@ def figure_targets(ext):
     out = [f"reports/figures/error_vs_ntrain_{s}.{ext}" for s in report_sources()]
     out += [f"reports/figures/subjective_{s}.{ext}" for s in report_sources()]
     out.append(f"reports/figures/calibration.{ext}")
+    return out
+
+
+def why_pm_figures(ext):
+    """Figures of the section "Why PM trails the paper here": chain traces and the g_xy mechanism."""
+    out = []
     if config["report"].get("trace_method") in run_methods():
         out.append(f"reports/figures/trace.{ext}")
+    if config["report"].get("gxy_methods"):
+        out.append(f"reports/figures/gxy.{ext}")
     return out
 
 
@@ -228,7 +288,7 @@ def subjective_inputs(wildcards):
         ],
         "features": [f"results/features/{wildcards.source}/{a}.npz" for a in acts],
         "predictions": [
-            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{largest_run_n(p, wildcards.source, a)}/seed0.npz"
+            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{largest_run_n(p, wildcards.source, a)}/seed{first_seed()}.npz"
             for a in acts
             for m in shown
         ],
@@ -249,11 +309,22 @@ def subjective_motion(wildcards):
 
 
 def trace_input(wildcards):
-    """The saved trace of the trace method: first study activity, largest n_train, seed 0."""
+    """The saved trace(s) of the trace method: first study activity, largest n_train, first seed."""
     s, a = study_pairs()[0]
     p = config["protocols"][0]
     n = largest_run_n(p, s, a)
-    return f"results/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed0.npz"
+    return f"results/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed{first_seed()}.npz"
+
+
+def gxy_inputs(wildcards):
+    """Saved traces of the g_xy figure's methods: first study activity, smallest n_train, first seed."""
+    s, a = study_pairs()[0]
+    n = min(config["n_train"])
+    p = config["protocols"][0]
+    return [
+        f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{first_seed()}.npz"
+        for m in config["report"].get("gxy_methods") or []
+    ]
 
 
 def activity_labels(source):
@@ -294,5 +365,7 @@ def study_targets():
         "results/aggregate/results.csv",
         *table_targets(),
         *figure_targets("pdf"),
+        *why_pm_figures("pdf"),
+        "reports/tables/why_pm.tex",
         "reports/report.pdf",
     ]

@@ -52,6 +52,8 @@ rule fit:
         min_test=config["min_test"],
         gap=config["gap"],
         job_server=config["job_server"],
+    wildcard_constraints:
+        method=method_regex(chained=False),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
@@ -60,3 +62,66 @@ rule fit:
         runtime=30,
     script:
         "../scripts/fit_job.py"
+
+
+# Methods with `chains: C` > 1: C chain jobs per split (one MCMC chain per process, sampler seed
+# method_seed + chain), pooled into the split's result row and predictions by pool_chains.
+rule fit_chain:
+    input:
+        features="results/features/{source}/{activity}.npz",
+        cv=cv_input,
+        code=estimator_sources,
+    output:
+        chain="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.npz",
+    log:
+        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.log",
+    benchmark:
+        "results/benchmarks/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.tsv"
+    params:
+        estimator=lambda w: method_setting(w.method)["estimator"],
+        fixed=lambda w: method_setting(w.method).get("params", {}),
+        pose_transform=config["pose_transform"],
+        min_test=config["min_test"],
+        gap=config["gap"],
+        job_server=config["job_server"],
+    wildcard_constraints:
+        method=method_regex(chained=True),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    script:
+        "../scripts/fit_chain.py"
+
+
+rule pool_chains:
+    input:
+        features="results/features/{source}/{activity}.npz",
+        cv=cv_input,
+        chains=chain_inputs,
+    output:
+        row="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
+        predictions="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.npz",
+    log:
+        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+    params:
+        estimator=lambda w: method_setting(w.method)["estimator"],
+        fixed=lambda w: method_setting(w.method).get("params", {}),
+        cv_mode=config["cv"]["mode"],
+        paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
+        pose_transform=config["pose_transform"],
+        min_test=config["min_test"],
+        gap=config["gap"],
+        job_server=config["job_server"],
+    wildcard_constraints:
+        method=method_regex(chained=True),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../scripts/pool_chains.py"

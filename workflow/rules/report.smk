@@ -116,6 +116,54 @@ rule plot_trace:
         "../scripts/plots_trace.py"
 
 
+rule plot_gxy:
+    input:
+        results="results/aggregate/results.csv",
+        predictions=gxy_inputs,
+    output:
+        pdf="reports/figures/gxy.pdf",
+        png=report(
+            "reports/figures/gxy.png",
+            category="Figures",
+            caption="../report/gxy.rst",
+        ),
+    log:
+        "logs/report/gxy.log",
+    params:
+        labels=method_labels(),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
+    script:
+        "../scripts/plots_gxy.py"
+
+
+rule report_why_pm:
+    input:
+        results="results/aggregate/results.csv",
+        paper="resources/paper-tables.csv",
+    output:
+        section="reports/tables/why_pm.tex",
+        convergence=report(
+            "reports/tables/convergence.csv",
+            category="Tables",
+            caption="../report/convergence.rst",
+        ),
+    log:
+        "logs/report/why_pm.log",
+    params:
+        variants=pm_variants(),
+        base=config["report"].get("trace_method") or "PM",
+        nn="NN1",
+        labels=method_labels(),
+        figures=why_pm_figures("pdf"),
+    threads: 1
+    conda:
+        "../envs/bsrbench.yaml"
+    script:
+        "../scripts/report_why_pm.py"
+
+
 rule plot_subjective:
     input:
         unpack(subjective_inputs),
@@ -152,6 +200,8 @@ rule report_pdf:
         text=rules.report_text.output,
         tables=table_targets(),
         figures=figure_targets("pdf"),
+        why_pm="reports/tables/why_pm.tex",
+        why_pm_figures=why_pm_figures("pdf"),
     output:
         report("reports/report.pdf", category="Report", caption="../report/report.rst"),
     log:

@@ -1,4 +1,4 @@
-"""Snakemake adapter of rule plot_trace: the MCMC trace saved by one fit job."""
+"""Snakemake adapter of rule plot_trace: the MCMC traces of one split, every chain overlaid."""
 
 import json
 import sys
@@ -8,7 +8,8 @@ import numpy as np
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
-from bsrbench.reporting.plots import plot_trace, save  # noqa: E402
+from bsrbench.reporting.convergence import plot_chain_traces  # noqa: E402
+from bsrbench.reporting.plots import save  # noqa: E402
 from bsrbench.reporting.tables import read_results  # noqa: E402
 
 sm = snakemake  # noqa: F821
@@ -28,9 +29,9 @@ params = json.loads(row["params"].iloc[0]) if len(row) else {}
 with np.load(path) as f:
     arrays = {k: f[k] for k in f.files}
 label = dict(sm.params.labels).get(method, method)
-fig = plot_trace(
+fig = plot_chain_traces(
     arrays,
     title=f"{label} on {source}/{activity}, N={n[1:]}, seed {seed[4:]}",
-    n_burn_in=params.get("n_burn_in"),
+    n_burn_in=int(arrays["n_burn_in"]) if "n_burn_in" in arrays else params.get("n_burn_in"),
 )
 save(fig, [sm.output.pdf, sm.output.png])

@@ -16,7 +16,6 @@ CAPTIONS = {
     "(forward kinematics of the trial's skeleton). Precomputed features (hsc): they come with joint angles only, "
     "in an undocumented skeleton convention, so the input histogram and angle profiles are drawn instead.",
     "calibration": "Calibration: empirical against nominal coverage of the central predictive intervals.",
-    "trace": "MCMC traces of one PM fit (first activity, largest $N$, seed 0).",
 }
 write_generated(
     sm.output.findings,

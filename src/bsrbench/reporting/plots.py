@@ -3,7 +3,6 @@
 * :func:`plot_error_vs_ntrain`: error against training-set size per activity, every method with error bars
   (std over seeds), the paper's values as open markers.
 * :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals.
-* :func:`plot_trace`: per-sweep traces of an MCMC fit (the attribute ``trace_`` saved by a fit job).
 * :func:`plot_subjective`: the paper's Fig. 2 idea (input, true pose, predictions of several methods) for
   one test frame per activity. Poses are drawn as angle profiles (the 57 joint angles), because the
   precomputed features come with joint angles only, whose convention (Poser skeleton) is not documented.
@@ -113,32 +112,6 @@ def plot_calibration(df, *, methods, labels):
     if not any_line:
         axes[0].text(0.7, 0.5, "no method with predictive intervals was run", ha="center", fontsize=7)
     fig.suptitle("Calibration of the central predictive intervals (random protocol; band: min-max over jobs)", y=1.02)
-    fig.tight_layout()
-    return fig
-
-
-def plot_trace(arrays, *, title, n_burn_in=None, max_panels=8):
-    """One panel per per-sweep trace (``trace_<name>`` arrays; vectors per sweep are shown by their mean)."""
-    names = sorted(k for k in arrays if k.startswith("trace_"))[:max_panels]
-    fig, axes = _grid(max(1, len(names)))
-    for ax, k in zip(axes, names):
-        a = np.asarray(arrays[k], dtype=float)
-        if a.ndim > 1:
-            a = a.reshape(a.shape[0], -1).mean(axis=1)
-            lab = f"{k[6:]} (mean)"
-        else:
-            lab = k[6:]
-        ax.plot(np.arange(a.size), a, lw=0.7)
-        if n_burn_in:
-            ax.axvline(n_burn_in, color="0.4", ls="--", lw=0.8)
-        if a.size and np.all(a[np.isfinite(a)] > 0) and np.nanmax(a) / max(np.nanmin(a), 1e-300) > 100:
-            ax.set_yscale("log")
-        ax.set_title(lab)
-        ax.set_xlabel("sweep")
-        ax.grid(alpha=0.3)
-    if not names:
-        axes[0].text(0.5, 0.5, "the fit saved no trace", ha="center")
-    fig.suptitle(title + ("; dashed: end of burn-in" if n_burn_in else ""), y=1.02)
     fig.tight_layout()
     return fig
 

@@ -1,0 +1,422 @@
+"""Convergence of the MCMC methods and the PM ablation: tables, figures and the report section
+"Why PM trails the paper here", all computed from the aggregate table.
+
+A method run with several chains per split (config key ``methods.<M>.chains``) has, in its rows of the
+aggregate, ``n_chains`` and the split R-hat and bulk ESS across chains (ArviZ; Vehtari, Gelman, Simpson,
+Carpenter & Buerkner 2021) of the log-likelihood, g_xy, g_s (g_nx, g_ny with separate noise precisions)
+and the test error of each retained posterior sample (see :func:`bsrbench.study.convergence_summary`).
+Rows of one-chain methods have NaN there. The ablation runs PM variants as methods of their own
+(``config/ablation.yaml``); the variants of a study are the methods with the estimator of the trace method.
+"""
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from ..io import atomic_path
+from ..study import CONVERGENCE_SERIES
+from .tables import activity_label, best_mask, format_cell, latex_escape, paper_key, summarize
+
+#: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.
+CONVERGENCE_COLUMNS = ["n_chains"] + [f"{s}_{n}" for n in CONVERGENCE_SERIES for s in ("r_hat", "ess_bulk")]
+#: R-hat below this counts as converged (Vehtari et al. 2021 recommend 1.01; the issue asks for 1.05).
+RHAT_OK = 1.05
+#: Math labels of the per-sweep traces.
+TRACE_LABELS = {
+    "log_likelihood": "log-likelihood",
+    "g_xy": r"$\gamma_{xy}$ (noise precision)",
+    "g_s": r"$\gamma_s$ (code precision)",
+    "g_x": r"$\gamma_x$ (atom precision, $D^x$)",
+    "g_y": r"$\gamma_y$ (atom precision, $D^y$)",
+    "g_nx": r"$\gamma_{nx}$ (noise precision of $x$)",
+    "g_ny": r"$\gamma_{ny}$ (noise precision of $y$)",
+    "active_atoms": "active atoms",
+    "acceptance": "logit acceptance",
+}
+_PRECISIONS = ("g_xy", "g_s", "g_x", "g_y", "g_nx", "g_ny")
+
+
+def with_convergence_columns(df):
+    """``df`` with every :data:`CONVERGENCE_COLUMNS` column (NaN where absent), placed after the others."""
+    df = df.copy()
+    for c in CONVERGENCE_COLUMNS:
+        if c not in df.columns:
+            df[c] = math.nan
+    return df[[c for c in df.columns if c not in CONVERGENCE_COLUMNS] + CONVERGENCE_COLUMNS]
+
+
+# ------------------------------------------------------------------------------------------------- summaries
+def convergence_summary_table(df):
+    """Per (protocol, source, activity, n_train, method) with several chains: splits, chains, the largest
+    R-hat over splits and the smallest bulk ESS over splits of each series, and the fraction of splits whose
+    R-hat of the log-likelihood and of g_xy are both below :data:`RHAT_OK`."""
+    df = with_convergence_columns(df)
+    d = df[df["n_chains"].fillna(1) > 1]
+    keys = ["protocol", "source", "activity", "n_train", "method"]
+    if d.empty:
+        return pd.DataFrame(columns=keys)
+    rows = []
+    for key, g in d.groupby(keys, sort=True):
+        r = dict(zip(keys, key))
+        r["splits"] = len(g)
+        r["chains"] = int(g["n_chains"].max())
+        for n in CONVERGENCE_SERIES:
+            r[f"r_hat_{n}"] = float(g[f"r_hat_{n}"].max()) if g[f"r_hat_{n}"].notna().any() else math.nan
+            r[f"ess_bulk_{n}"] = float(g[f"ess_bulk_{n}"].min()) if g[f"ess_bulk_{n}"].notna().any() else math.nan
+        ok = (g["r_hat_log_likelihood"] < RHAT_OK) & (g["r_hat_g_xy"] < RHAT_OK)
+        r["converged"] = float(ok.mean())
+        rows.append(r)
+    return pd.DataFrame(rows)
+
+
+def _num(x, digits=2):
+    return "--" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def convergence_latex(df, *, labels):
+    """LaTeX tables of the convergence per method, over the activities, one table per (protocol, N)."""
+    df = with_convergence_columns(df)
+    d = df[df["n_chains"].fillna(1) > 1]
+    if d.empty:
+        return (r"\noindent No method was run with several chains, so no R-hat was computed "
+                r"(set \texttt{methods.<M>.chains} $\geq 2$, e.g.\ \texttt{config/ablation.yaml}).")
+    out = []
+    for (protocol, n_train), dp in d.groupby(["protocol", "n_train"], sort=True):
+        acts = ", ".join(sorted(set(dp["activity"])))
+        out += [
+            r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
+            rf"\caption{{Convergence, protocol ``{latex_escape(protocol)}'', $N={int(n_train)}$ (activities: "
+            rf"{latex_escape(acts)}): "
+            r"largest split $\hat R$ over splits and smallest bulk ESS over splits, across the chains of each split; "
+            r"$\ell$: log-likelihood, err: test error of each retained sample; conv.: share of splits with "
+            rf"$\hat R < {RHAT_OK}$ for both $\ell$ and $\gamma_{{xy}}$.}}",
+            r"\begin{tabular}{@{}lrrrrrrrrrr@{}}", r"\toprule",
+            r"Method & $N$ & splits & chains & $\hat R$ $\ell$ & $\hat R$ $\gamma_{xy}$ & $\hat R$ $\gamma_s$ & "
+            r"$\hat R$ err & ESS $\ell$ & ESS $\gamma_{xy}$ & conv. \\", r"\midrule",
+        ]
+        methods = list(dict.fromkeys(dp["method"]))
+        for m in methods:
+            for n, g in dp[dp["method"] == m].groupby("n_train", sort=True):
+                def mx(c):
+                    return float(g[c].max()) if g[c].notna().any() else math.nan
+
+                def mn(c):
+                    return float(g[c].min()) if g[c].notna().any() else math.nan
+
+                ok = ((g["r_hat_log_likelihood"] < RHAT_OK) & (g["r_hat_g_xy"] < RHAT_OK)).mean()
+                out.append(" & ".join([
+                    latex_escape(labels.get(m, m)), str(int(n)), str(len(g)), str(int(g["n_chains"].max())),
+                    _num(mx("r_hat_log_likelihood")), _num(mx("r_hat_g_xy")), _num(mx("r_hat_g_s")),
+                    _num(mx("r_hat_test_error")), _num(mn("ess_bulk_log_likelihood"), 0),
+                    _num(mn("ess_bulk_g_xy"), 0), f"{100 * ok:.0f}\\%",
+                ]) + r" \\")
+        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
+    return "\n".join(out)
+
+
+def _cell_stats(s, activity, n, method):
+    c = s[(s["activity"] == activity) & (s["n_train"] == n) & (s["method"] == method)]
+    if c.empty:
+        return math.nan, math.nan
+    return float(c["mean"].iloc[0]), float(c["std"].iloc[0])
+
+
+def ablation_cells(df, *, variants, nn="NN1"):
+    """Per (protocol, source, activity, n_train): the best variant's mean error, its name, 1-NN's mean, the best
+    other method (baseline) and its mean. A DataFrame (empty if no variant ran)."""
+    s = summarize(df)
+    rows = []
+    for key, g in s.groupby(["protocol", "source", "activity", "paper_activity", "n_train"], sort=True):
+        g = g.set_index("method")["mean"]
+        vs = g[[v for v in variants if v in g.index]].dropna()
+        if vs.empty:
+            continue
+        others = g[[m for m in g.index if m not in variants and m != nn]].dropna()
+        rows.append({
+            "protocol": key[0], "source": key[1], "activity": key[2], "paper_activity": key[3], "n_train": key[4],
+            "best_variant": vs.idxmin(), "best_variant_error": float(vs.min()),
+            "nn_error": float(g[nn]) if nn in g.index else math.nan,
+            "best_baseline": others.idxmin() if len(others) else "",
+            "best_baseline_error": float(others.min()) if len(others) else math.nan,
+        })
+    return pd.DataFrame(rows)
+
+
+def ablation_latex(df, paper, *, variants, labels, nn="NN1", digits=2):
+    """One table per (protocol, source, activity): variants x N, mean $\\pm$ std over splits, best in bold,
+    1-NN, the best other method and (random protocol... and any protocol, for reference) the paper's PM."""
+    s = summarize(df)
+    out = []
+    for (protocol, source, activity), sp in s.groupby(["protocol", "source", "activity"], sort=True):
+        vs = [v for v in variants if v in set(sp["method"])]
+        if not vs:
+            continue
+        sizes = sorted(int(n) for n in sp["n_train"].unique())
+        pa = sp["paper_activity"].iloc[0]
+        others = [m for m in dict.fromkeys(sp["method"]) if m not in variants and m != nn]
+        rows = [(latex_escape(labels.get(v, v)), v) for v in vs]
+        if nn in set(sp["method"]):
+            rows.append((latex_escape(labels.get(nn, nn)), nn))
+        grid = {m: [_cell_stats(sp, activity, n, m) for n in sizes] for _, m in rows}
+        best_base = []
+        for i, n in enumerate(sizes):
+            cand = [(m, _cell_stats(sp, activity, n, m)) for m in others]
+            cand = [(m, st) for m, st in cand if np.isfinite(st[0])]
+            best_base.append(min(cand, key=lambda t: t[1][0]) if cand else (None, (math.nan, math.nan)))
+        bold = []
+        for i in range(len(sizes)):
+            col = [grid[m][i][0] for _, m in rows] + [best_base[i][1][0]]
+            bold.append(best_mask(col, digits))
+        out += [
+            r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
+            rf"\caption{{PM variants on {latex_escape(activity_label(activity, pa))} ({latex_escape(source)}), "
+            rf"protocol ``{latex_escape(protocol)}'': mean error $\pm$ std (degrees) over splits; best of each "
+            r"column in bold (variants, 1-NN and the best other method); italic: the paper's PM (random frames).}",
+            r"\begin{tabular}{@{}l" + "c" * len(sizes) + "@{}}", r"\toprule",
+            " & ".join(["Method"] + [f"$N={n}$" for n in sizes]) + r" \\", r"\midrule",
+        ]
+        for r, (lab, m) in enumerate(rows):
+            if m == nn:
+                out.append(r"\midrule")
+            cells = [format_cell(*grid[m][i], bold=bold[i][r], digits=digits) for i in range(len(sizes))]
+            out.append(" & ".join([lab] + cells) + r" \\")
+        cells = []
+        for i in range(len(sizes)):
+            m, st = best_base[i]
+            cells.append("--" if m is None else format_cell(*st, bold=bold[i][len(rows)], digits=digits)
+                         + rf" {{\scriptsize ({latex_escape(labels.get(m, m))})}}")
+        out.append(" & ".join(["best other method"] + cells) + r" \\")
+        if paper is not None and paper_key(pa):
+            pc = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == "PM")].set_index("n_train")
+            if any(n in pc.index for n in sizes):
+                cells = [r"\emph{" + format_cell(float(pc.at[n, "mean_deg"]), float(pc.at[n, "std_deg"]),
+                                                  digits=digits) + "}" if n in pc.index else "" for n in sizes]
+                out.append(" & ".join([r"\emph{paper's PM}"] + cells) + r" \\")
+        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
+    return "\n".join(out)
+
+
+def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
+    """Plain sentences (LaTeX) drawn from the numbers: where the best variant beats 1-NN, which variants
+    converge, and the base PM against the paper's."""
+    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    out = []
+    cells = ablation_cells(df, variants=variants, nn=nn)
+    if cells.empty:
+        return [f"No PM variant ({', '.join(L(v) for v in variants) or 'none'}) was run."]
+    for protocol, c in cells.groupby("protocol", sort=True):
+        have = c.dropna(subset=["nn_error"])
+        wins = have[have["best_variant_error"] < have["nn_error"]]
+        counts = c["best_variant"].value_counts()
+        out.append(
+            f"Protocol ``{latex_escape(protocol)}'': the best PM variant of each (activity, $N$) cell beats "
+            f"{L(nn)} in {len(wins)} of {len(have)} cells; the best variant is "
+            + ", ".join(f"{L(m)} in {k}" for m, k in counts.items()) + " of them."
+        )
+        bb = c.dropna(subset=["best_baseline_error"])
+        if len(bb):
+            beat = int((bb["best_variant_error"] < bb["best_baseline_error"]).sum())
+            out.append(
+                f"Against the best other method of each cell ({', '.join(sorted({L(m) for m in bb['best_baseline']}))}), "
+                f"the best PM variant is lower in {beat} of {len(bb)} cells."
+            )
+    conv = convergence_summary_table(df)
+    conv = conv[conv["method"].isin(variants)] if not conv.empty else conv
+    if conv.empty:
+        out.append("No PM variant was run with several chains, so convergence was not measured here.")
+    else:
+        per = conv.groupby("method", sort=False)["converged"].mean()
+        good = [m for m, v in per.items() if v == 1.0]
+        out.append(
+            f"Convergence ($\\hat R < {RHAT_OK}$ on the log-likelihood and $\\gamma_{{xy}}$ in every split, "
+            f"{int(conv['chains'].max())} chains): "
+            + (", ".join(L(m) for m in good) if good else "no variant")
+            + f" of {len(per)}; share of converged splits per variant: "
+            + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in per.items()) + "."
+        )
+        conv_good = conv[conv["method"].isin(good)]
+        if len(conv_good) and conv_good["r_hat_g_s"].notna().any():
+            out.append(
+                f"For the converged variants the largest $\\hat R$ of $\\gamma_s$ is "
+                f"{float(conv_good['r_hat_g_s'].max()):.2f} and the smallest bulk ESS of the log-likelihood "
+                f"{float(conv_good['ess_bulk_log_likelihood'].min()):.0f}; for the others the largest "
+                f"$\\hat R$ of the log-likelihood is "
+                + (f"{float(conv[~conv['method'].isin(good)]['r_hat_log_likelihood'].max()):.2f}."
+                   if (~conv["method"].isin(good)).any() else "not applicable (all converged).")
+            )
+        both = []
+        for m in good:
+            cm = summarize(df)
+            mine = cm[cm["method"] == m].set_index(["protocol", "source", "activity", "n_train"])["mean"]
+            ref = cm[cm["method"] == nn].set_index(["protocol", "source", "activity", "n_train"])["mean"]
+            j = mine.to_frame("v").join(ref.to_frame("nn"), how="inner").dropna()
+            if len(j) and (j["v"] < j["nn"]).mean() >= 0.75:
+                both.append(m)
+        out.append(
+            "Variants that converge and beat " + L(nn) + " in at least three quarters of their cells: "
+            + (", ".join(L(m) for m in both) if both else "none") + "."
+        )
+    if paper is not None and base in variants:
+        s = summarize(df)
+        sb = s[s["method"] == base].copy()
+        pp = paper[paper["method"] == "PM"]
+        m = sb.merge(pp, on=["key", "n_train"], suffixes=("", "_paper"))
+        if not m.empty:
+            parts = [
+                f"$N={int(n)}$: {float(np.median(g['mean'])):.2f} against the paper's {float(np.median(g['mean_deg'])):.2f}"
+                for n, g in m.groupby("n_train", sort=True)
+            ]
+            out.append(f"{L(base)} here against the paper's PM (median over activities and protocols): "
+                       + "; ".join(parts) + " degrees.")
+    return out
+
+
+def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1"):
+    """The LaTeX section "Why PM trails the paper here" (input by reports/report.tex).
+
+    ``figures``: list of (path relative to reports/, caption).
+    """
+    lines = ["% generated from results/aggregate/results.csv", r"\section{Why PM trails the paper here}", ""]
+    lines.append(
+        r"The paper's PM is a Gibbs sampler; its numbers carry weight only if the chains have converged. Every PM "
+        r"variant below is a method of its own (\texttt{config/ablation.yaml}); with several chains per split the "
+        r"prediction pools the chains and the split R-hat and bulk ESS (ArviZ) are computed across them."
+    )
+    lines += ["", r"\begin{itemize}"] + [r"\item " + t for t in why_pm_sentences(
+        df, paper, variants=variants, labels=labels, base=base, nn=nn)] + [r"\end{itemize}", ""]
+    lines += [r"\subsection*{Convergence}", convergence_latex(df, labels=labels), ""]
+    if len(variants) > 1 or nn in set(df["method"]):
+        lines += [r"\subsection*{Ablation}", ablation_latex(df, paper, variants=variants, labels=labels, nn=nn), ""]
+    for f, caption in figures:
+        lines += [
+            r"\begin{figure}[H]", r"\centering",
+            rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{{f}}}",
+            rf"\caption{{{caption}}}", r"\end{figure}",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def write_why_pm(path, text):
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+# --------------------------------------------------------------------------------------------------- figures
+def chain_traces(arrays):
+    """``{name: (chains, sweeps)}`` of a saved fit (``chain_trace_<name>`` of a pooled split, or
+    ``trace_<name>`` of a one-chain fit), plus ``draw_error`` (chains, retained samples) if saved."""
+    out = {}
+    for k, v in arrays.items():
+        if k.startswith("chain_trace_"):
+            out[k[len("chain_trace_"):]] = np.atleast_2d(np.asarray(v, dtype=float))
+    if not out:
+        for k, v in arrays.items():
+            if k.startswith("trace_") and np.asarray(v).ndim == 1:
+                out[k[len("trace_"):]] = np.asarray(v, dtype=float)[None, :]
+    if "chain_draw_error" in arrays:
+        out["draw_error"] = np.atleast_2d(np.asarray(arrays["chain_draw_error"], dtype=float))
+    return out
+
+
+def _log_axis(ax):
+    """A log y axis; plain labels on the minor ticks when the trace spans less than a decade."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    ax.set_yscale("log")
+    lo, hi = ax.get_ylim()
+    if hi / lo < 10:  # at most one decade tick inside: label the minor ticks, plainly
+        fmt = FuncFormatter(lambda v, _: f"{v:.3g}")
+        ax.yaxis.set_major_formatter(fmt)
+        ax.yaxis.set_minor_formatter(fmt)
+    else:
+        ax.yaxis.set_minor_formatter(NullFormatter())
+
+
+def _informative(a):
+    """A trace worth a panel: finite values that are not the same constant in every chain."""
+    f = a[np.isfinite(a)]
+    return f.size > 0 and np.ptp(f) > 0
+
+
+def plot_chain_traces(arrays, *, title, n_burn_in=None):
+    """Per-sweep traces of every chain of a split, overlaid (one colour per chain), burn-in shaded.
+
+    Panels: log-likelihood, the precisions (log axis), active atoms, logit acceptance and the test error of
+    each retained sample, each only if it was recorded and is not constant (e.g. elliptical slice sampling
+    always moves, so its acceptance is 1 and gets no panel). Returns the figure.
+    """
+    import matplotlib.pyplot as plt
+
+    tr = chain_traces(arrays)
+    if n_burn_in is None and "n_burn_in" in arrays:
+        n_burn_in = int(arrays["n_burn_in"])
+    order = ["log_likelihood", *_PRECISIONS, "active_atoms", "acceptance", "draw_error"]
+    names = [n for n in order if n in tr and _informative(tr[n])]
+    names += sorted(n for n in tr if n not in order and _informative(tr[n]))
+    n = max(1, len(names))
+    ncols = 2 if n > 1 else 1
+    nrows = math.ceil(n / ncols)
+    fig = plt.figure(figsize=(7.2, 1.75 * nrows + 0.5))
+    gs = fig.add_gridspec(nrows, ncols)
+    n_chains = max((a.shape[0] for a in tr.values()), default=0)
+    for i, name in enumerate(names):
+        r, c = divmod(i, ncols)
+        span = slice(c, ncols) if (i == n - 1 and n % ncols) else slice(c, c + 1)
+        ax = fig.add_subplot(gs[r, span])
+        a = tr[name]
+        for k in range(a.shape[0]):
+            ax.plot(np.arange(a.shape[1]), a[k], lw=0.6, color=f"C{k % 10}", label=f"chain {k}")
+        if name == "draw_error":
+            ax.set_xlabel("retained sample")
+            ax.set_ylabel("degrees", fontsize=7)
+            ax.set_title("test error of each retained sample")
+        else:
+            if n_burn_in:
+                ax.axvspan(0, n_burn_in, color="0.9", zorder=0)
+                ax.axvline(n_burn_in, color="0.3", ls="--", lw=0.8)
+            if name in _PRECISIONS and np.all(a[np.isfinite(a)] > 0):
+                _log_axis(ax)
+            ax.set_xlabel("Gibbs sweep")
+            ax.set_title(TRACE_LABELS.get(name, name.replace("_", " ")))
+        ax.grid(alpha=0.3)
+    if n_chains > 1 and names:
+        fig.axes[0].legend(fontsize=6, ncol=min(n_chains, 4), loc="best")
+    if not names:
+        ax = fig.add_subplot(gs[0, 0])
+        ax.text(0.5, 0.5, "the fit saved no trace", ha="center", va="center")
+        ax.set_axis_off()
+    suffix = f"; {n_chains} chains" if n_chains > 1 else ""
+    suffix += "; shaded: burn-in" if n_burn_in else ""
+    fig.suptitle(title + suffix)
+    fig.tight_layout()
+    return fig
+
+
+def plot_gxy(items, *, n_burn_in=None):
+    """The g_xy mechanism: g_xy traces (log axis, every chain) side by side, one panel per item.
+
+    ``items``: list of (panel title, arrays of a saved fit). Returns the figure.
+    """
+    import matplotlib.pyplot as plt
+
+    n = max(1, len(items))
+    fig, axes = plt.subplots(1, n, figsize=(2.5 * n + 0.8, 2.6), squeeze=False, sharey=True)
+    for ax, (title, arrays) in zip(axes[0], items):
+        tr = chain_traces(arrays).get("g_xy")
+        burn = n_burn_in if n_burn_in is not None else int(arrays.get("n_burn_in", 0))
+        if tr is None:
+            ax.text(0.5, 0.5, "no g_xy trace", ha="center", va="center", transform=ax.transAxes)
+            continue
+        for k in range(tr.shape[0]):
+            ax.plot(np.arange(tr.shape[1]), tr[k], lw=0.6, color=f"C{k % 10}")
+        if burn:
+            ax.axvspan(0, burn, color="0.9", zorder=0)
+        _log_axis(ax)
+        ax.set_title(title, fontsize=8)
+        ax.set_xlabel("Gibbs sweep")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel(r"$\gamma_{xy}$")
+    fig.suptitle(r"Noise precision $\gamma_{xy}$ per chain (log axis; shaded: burn-in)")
+    fig.tight_layout()
+    return fig

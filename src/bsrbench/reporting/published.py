@@ -1,0 +1,129 @@
+"""Published result tables (``reports/published/*.csv``) and the README's results tables made from them.
+
+``reports/published/paper.csv`` (the paper protocol, ``config/paper.yaml``) and ``reports/published/ablation.csv``
+(``config/ablation.yaml``) are copies of the aggregate table of those runs: one row per fit job, the columns of
+``results/aggregate/results.csv`` including the convergence columns (NaN where not computed). They are committed,
+so that anyone can regenerate and check the README's tables without rerunning the study::
+
+    python -m bsrbench.reporting.published publish results/aggregate/results.csv reports/published/paper.csv
+    python -m bsrbench.reporting.published readme reports/published/paper.csv --update README.md
+
+``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it.
+``readme`` prints the markdown tables (one per data source, random protocol: mean +- std over seeds, the paper's
+number in brackets, the lowest mean of each row in bold) or, with ``--update``, replaces the text between the
+markers ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README.
+"""
+
+import argparse
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataFileError, InputError
+from ..io import atomic_path
+from .convergence import with_convergence_columns
+from .tables import KEY_COLUMNS, best_mask, read_paper_tables, read_results, summarize
+
+#: Column order of the README's tables, and their labels.
+README_METHODS = ("RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge")
+README_LABELS = {"NN1": "1-NN"}
+_DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tables.csv"
+
+
+def publish(src, dest):
+    """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first."""
+    df = read_results(src)
+    dup = df.duplicated(KEY_COLUMNS, keep=False)
+    if dup.any():
+        raise DataFileError(src, f"duplicate job rows, e.g. {df.loc[dup, KEY_COLUMNS].iloc[0].to_dict()}")
+    df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
+    with atomic_path(dest) as tmp:
+        df.to_csv(tmp, index=False)
+    return df
+
+
+def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, labels=None, digits=2):
+    """{source: markdown table} of the README: one row per (activity, N), one column per method."""
+    labels = {**README_LABELS, **(labels or {})}
+    s = summarize(df[df["protocol"] == protocol])
+    if s.empty:
+        raise InputError(f"no rows of protocol {protocol!r} to tabulate")
+    shown = [m for m in methods if m in set(s["method"])] + sorted(set(s["method"]) - set(methods))
+    out = {}
+    for source, ss in s.groupby("source", sort=False):
+        lines = ["| activity | N | " + " | ".join(labels.get(m, m) for m in shown) + " |",
+                 "|" + "---|" * (2 + len(shown))]
+        for (activity, n), g in ss.groupby(["activity", "n_train"], sort=True):
+            g = g.set_index("method")
+            means = [float(g.at[m, "mean"]) if m in g.index else math.nan for m in shown]
+            bold = best_mask(means, digits)
+            cells = []
+            for m, mean, b in zip(shown, means, bold):
+                if not np.isfinite(mean):
+                    cells.append("--")
+                    continue
+                txt = f"**{mean:.{digits}f}**" if b else f"{mean:.{digits}f}"
+                std = float(g.at[m, "std"])
+                if np.isfinite(std):
+                    txt += f"±{std:.{digits}f}"
+                key = g["key"].iloc[0]
+                p = paper[(paper["key"] == key) & (paper["n_train"] == n) & (paper["method"] == labels.get(m, m))]
+                if key and len(p):
+                    txt += f" ({float(p['mean_deg'].iloc[0]):.{digits}f})"
+                cells.append(txt)
+            lines.append(f"| {activity} | {int(n)} | " + " | ".join(cells) + " |")
+        out[source] = "\n".join(lines)
+    return out
+
+
+def update_readme(path, tables):
+    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``."""
+    path = Path(path)
+    text = path.read_text()
+    for source, table in tables.items():
+        pat = re.compile(
+            rf"(<!-- results-table:{re.escape(source)} -->\n).*?(\n<!-- /results-table:{re.escape(source)} -->)",
+            re.S,
+        )
+        if not pat.search(text):
+            raise DataFileError(
+                path, f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'"
+            )
+        text = pat.sub(lambda m: m.group(1) + table + m.group(2), text)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m bsrbench.reporting.published", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    p = sub.add_parser("publish", help="copy an aggregate table to reports/published/ (checked)")
+    p.add_argument("src")
+    p.add_argument("dest")
+    r = sub.add_parser("readme", help="the README's results tables from a published table")
+    r.add_argument("table")
+    r.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables (resources/paper-tables.csv)")
+    r.add_argument("--protocol", default="random")
+    r.add_argument("--update", metavar="README", help="replace the marked tables in this file instead of printing")
+    args = ap.parse_args(argv)
+    try:
+        if args.cmd == "publish":
+            df = publish(args.src, args.dest)
+            print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
+            return 0
+        tables = readme_tables(read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol)
+        if args.update:
+            update_readme(args.update, tables)
+        else:
+            print("\n\n".join(f"**{s}**\n\n{t}" for s, t in tables.items()))
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

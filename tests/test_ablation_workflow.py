@@ -1,0 +1,101 @@
+"""The ablation workflow (config/ablation.yaml): dry-run job counts, and the CI-scale ablation
+(config/ablation-ci.yaml: 2 chains per split) run end to end in a copy of the working tree: chain jobs, pooled
+rows with R-hat and ESS in the aggregate, the convergence table, the trace and g_xy figures and the section
+"Why PM trails the paper here" in the PDF; the published-table script on its aggregate."""
+
+import json
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bsrbench.reporting.published import main as published_main
+from bsrbench.study import chain_seed
+
+from test_workflow import ROOT, smk
+
+ABLATION = ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")
+
+
+def _copy_tree(work):
+    """The workflow and configs in ``work`` (resources linked), so that no result of the working tree counts."""
+    for name in ("workflow", "config"):
+        shutil.copytree(ROOT / name, work / name)
+    (work / "reports").mkdir()
+    shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
+    (work / "resources").symlink_to(ROOT / "resources")
+    return work
+
+
+@pytest.mark.slow  # a DAG of 6,230 jobs: about a minute on an idle machine
+def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
+    res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", cwd=_copy_tree(tmp_path))
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
+    variants = 20  # PM variants in config/ablation.yaml
+    splits = 4 * 3 * 5  # hsc activities x N x seeds
+    assert int(counts["fit_chain"]) == variants * 4 * splits
+    assert int(counts["pool_chains"]) == variants * splits
+    assert int(counts["fit"]) == 3 * splits  # 1-NN, TGP, SR
+    assert "seed100" in out and "seed0." not in out  # splits disjoint from the paper protocol's seeds 0-9
+
+
+@pytest.fixture(scope="module")
+def ablation_run(tmp_path_factory):
+    work = _copy_tree(tmp_path_factory.mktemp("ablation"))
+    res = smk("reports/report.pdf", "--cores", "2", *ABLATION, cwd=work, timeout=900)
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
+    return work
+
+
+def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
+    df = pd.read_csv(ablation_run / "results" / "aggregate" / "results.csv")
+    assert len(df) == 5 and set(df["seed"]) == {100}
+    pm = df[df["method"].isin(["PM", "PMK16", "PMj3"])]
+    assert (pm["n_chains"] == 2).all()
+    for col in ("r_hat_log_likelihood", "r_hat_g_xy", "r_hat_g_s", "ess_bulk_log_likelihood", "ess_bulk_g_xy"):
+        assert pm[col].notna().all() and (pm[col] > 0).all(), col
+    assert df.loc[df["method"].isin(["NN1", "Ridge"]), "r_hat_g_xy"].isna().all()
+    row = pm[pm["method"] == "PM"].iloc[0]
+    seeds = json.loads(row["chain_seeds"])
+    assert seeds == [chain_seed(int(row["method_seed"]), c) for c in range(2)]
+    d = ablation_run / "results" / "fit" / "contiguous" / "hsc" / "golf" / "PM" / "n30"
+    chains = [np.load(d / "seed100" / f"chain{c}.npz") for c in range(2)]
+    pooled = np.load(d / "seed100.npz")
+    np.testing.assert_array_equal(pooled["chain_trace_g_xy"][1], chains[1]["trace_g_xy"])
+    assert pooled["chain_trace_log_likelihood"].shape == (2, 40)
+
+
+def test_report_has_the_convergence_table_and_the_section(ablation_run):
+    tex = (ablation_run / "reports" / "tables" / "why_pm.tex").read_text()
+    assert r"\section{Why PM trails the paper here}" in tex
+    assert re.search(r"^PM & 30 & 1 & 2 & \d\.\d\d & \d\.\d\d", tex, re.M), tex
+    assert "beats 1-NN in" in tex and "figures/trace.pdf" in tex and "figures/gxy.pdf" in tex
+    conv = pd.read_csv(ablation_run / "reports" / "tables" / "convergence.csv")
+    assert set(conv["method"]) == {"PM", "PMK16", "PMj3"} and (conv["chains"] == 2).all()
+    pdf = ablation_run / "reports" / "report.pdf"
+    if shutil.which("pdftotext"):
+        text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout
+        assert "Why PM trails the paper here" in text and "Convergence" in text
+
+
+def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_path):
+    agg = ablation_run / "results" / "aggregate" / "results.csv"
+    dest = tmp_path / "published" / "ablation.csv"
+    assert published_main(["publish", str(agg), str(dest)]) == 0
+    pub = pd.read_csv(dest)
+    assert len(pub) == 5 and "r_hat_test_error" in pub.columns
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- results-table:hsc -->\nold\n<!-- /results-table:hsc -->\nend\n")
+    assert published_main(["readme", str(dest), "--protocol", "contiguous", "--update", str(readme)]) == 0
+    text = readme.read_text()
+    assert "old" not in text and text.startswith("intro\n") and text.endswith("end\n")
+    row = next(ln for ln in text.splitlines() if ln.startswith("| golf | 30 |"))
+    errors = pub.set_index("method")["error"]
+    best = errors.idxmin()
+    assert f"**{errors[best]:.2f}**" in row and row.count("**") == 2
+    assert published_main(["readme", str(dest), "--protocol", "random"]) == 2  # no such rows: a clear error

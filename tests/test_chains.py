@@ -1,0 +1,182 @@
+"""Several MCMC chains per split: chain seeds, pooling of the chains' predictions, R-hat and ESS across
+chains, and the convergence tables, ablation table, sentences and trace figures drawn from the aggregate."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bsrbench.errors import InputError
+from bsrbench.models.bsr import BayesianSR
+from bsrbench.poses import get_pose_transform
+from bsrbench.reporting import convergence as conv
+from bsrbench.study import (
+    JobSpec,
+    chain_seed,
+    convergence_summary,
+    load_features,
+    pool_chains,
+    run_chain,
+    run_job,
+)
+
+BSR = "bsrbench.models.bsr:BayesianSR"
+PARAMS = {"n_atoms": 8, "n_neighbors": 3, "n_iter": 40, "n_burn_in": 20, "thin": 2}
+
+
+def _features(tmp_path, n=160):
+    rng = np.random.default_rng(3)
+    X = np.abs(rng.normal(size=(n, 6)))
+    Y = np.column_stack([X[:, :3] @ rng.normal(size=(3, 4)) * 10, np.rad2deg(np.arctan2(X[:, 4], X[:, 5]))])
+    Y = Y[:, [0, 1, 4, 2, 3]]  # heading in column 2, as in the data
+    path = tmp_path / "f.npz"
+    np.savez(path, X=X, Y=Y, frames=np.arange(n))
+    return load_features(path)
+
+
+def test_chain_seeds_start_at_the_method_seed_and_differ():
+    assert chain_seed(12345, 0) == 12345
+    assert [chain_seed(2**32 - 2, c) for c in range(4)] == [2**32 - 2, 2**32 - 1, 0, 1]
+
+
+@pytest.fixture(scope="module")
+def chains(tmp_path_factory):
+    feats = _features(tmp_path_factory.mktemp("chains"))
+    spec = JobSpec("syn", "act", "PM", 40, 0, min_test=50)
+    return spec, feats, [run_chain(spec, feats, estimator=BSR, params=PARAMS, chain=c) for c in range(3)]
+
+
+def test_chain_zero_is_the_one_chain_fit(chains):
+    spec, feats, cs = chains
+    row, arrays = run_job(spec, feats, estimator=BSR, params=PARAMS)
+    np.testing.assert_array_equal(cs[0]["trace_g_xy"], arrays["trace_g_xy"])
+    transform = get_pose_transform("heading", column=2)
+    np.testing.assert_allclose(transform.inverse(cs[0]["z_mean"]), arrays["y_pred"], rtol=1e-12)
+    assert not np.array_equal(cs[0]["trace_g_xy"], cs[1]["trace_g_xy"])  # other seed, other chain
+    assert [int(c["seed"]) for c in cs] == [spec.method_seed + c for c in range(3)]
+
+
+def test_pooled_prediction_is_the_mixture_of_the_chains(chains):
+    spec, feats, cs = chains
+    row, arrays = pool_chains(spec, feats, cs, estimator=BSR, params=PARAMS)
+    transform = get_pose_transform("heading", column=2)
+    means = np.stack([c["z_mean"] for c in cs])
+    # independent form of the mixture variance: mean within-chain variance + variance of the chain means
+    var = np.mean([c["z_var"] for c in cs], axis=0) + means.var(axis=0)
+    np.testing.assert_allclose(arrays["y_pred"], transform.inverse(means.mean(axis=0)), rtol=1e-12)
+    from bsrbench.study import inverse_std
+
+    np.testing.assert_allclose(arrays["y_std"], inverse_std(transform, means.mean(axis=0), np.sqrt(var)), rtol=1e-9)
+    assert row["n_chains"] == 3 and row["chain_seeds"] == [int(c["seed"]) for c in cs]
+    assert arrays["chain_trace_g_xy"].shape == (3, 40)
+    assert 0 <= row["coverage_90"] <= 1
+
+
+def test_rhat_and_ess_are_arviz_on_the_post_burn_in_sweeps(chains):
+    import arviz as az
+
+    spec, feats, cs = chains
+    out = convergence_summary(cs)
+    x = np.stack([c["trace_log_likelihood"][20:] for c in cs])
+    assert out["r_hat_log_likelihood"] == pytest.approx(float(az.rhat(az.convert_to_dataset(x))["x"]))
+    assert out["ess_bulk_g_xy"] == pytest.approx(
+        float(az.ess(az.convert_to_dataset(np.stack([c["trace_g_xy"][20:] for c in cs])), method="bulk")["x"])
+    )
+    assert math.isnan(out["r_hat_g_nx"])  # shared noise: no g_nx trace
+    if hasattr(BayesianSR, "predict_draws"):
+        assert np.isfinite(out["r_hat_test_error"]) and all(c["draw_error"].size == 10 for c in cs)
+    else:
+        assert math.isnan(out["r_hat_test_error"]) and "draw_error" not in cs[0]
+    assert all(math.isnan(v) for v in convergence_summary(cs[:1]).values())  # one chain: not computed
+
+
+def test_rhat_separates_stuck_chains_from_mixed_ones():
+    rng = np.random.default_rng(0)
+    mixed = [{"trace_log_likelihood": rng.normal(size=500), "n_burn_in": 0} for _ in range(4)]
+    stuck = [{"trace_log_likelihood": rng.normal(size=500) + 3 * c, "n_burn_in": 0} for c in range(4)]
+    assert convergence_summary(mixed)["r_hat_log_likelihood"] < 1.02
+    assert convergence_summary(stuck)["r_hat_log_likelihood"] > 2
+    assert convergence_summary(mixed)["ess_bulk_log_likelihood"] > 1000
+
+
+def test_a_stale_chain_of_another_split_is_rejected(chains):
+    spec, feats, cs = chains
+    other = JobSpec("syn", "act", "PM", 40, 1, min_test=50)
+    with pytest.raises(InputError, match="another split"):
+        pool_chains(other, feats, cs, estimator=BSR, params=PARAMS)
+
+
+# ------------------------------------------------------------------------------------------- reporting
+def _aggregate():
+    rows = []
+    for m, err, rhat in (("PM", 9.0, 1.3), ("PMK16", 6.0, 1.01), ("NN1", 7.0, None), ("SR", 5.5, None)):
+        for n in (30, 100):
+            for seed in (100, 101):
+                r = {"protocol": "contiguous", "source": "hsc", "activity": "golf", "paper_activity": "Golf",
+                     "method": m, "n_train": n, "seed": seed, "error": err + 0.1 * seed - 10 + (n == 100)}
+                if rhat is not None:
+                    r.update(n_chains=4, r_hat_log_likelihood=rhat, r_hat_g_xy=rhat + 0.05 * (seed - 100),
+                             ess_bulk_log_likelihood=100.0 + seed)
+                rows.append(r)
+    return conv.with_convergence_columns(pd.DataFrame(rows))
+
+
+def _paper():
+    return pd.DataFrame({"table": "I", "activity": "Golf", "n_train": [30, 100], "method": "PM",
+                         "mean_deg": [8.24, 3.93], "std_deg": [1.0, 1.0], "key": "golf"})
+
+
+def test_convergence_columns_and_summary():
+    df = _aggregate()
+    assert set(conv.CONVERGENCE_COLUMNS) <= set(df.columns)
+    assert df.loc[df["method"] == "NN1", "r_hat_g_xy"].isna().all()
+    t = conv.convergence_summary_table(df).set_index(["method", "n_train"])
+    assert t.at[("PM", 30), "r_hat_log_likelihood"] == 1.3
+    assert t.at[("PMK16", 30), "r_hat_g_xy"] == pytest.approx(1.06)  # the largest over splits
+    assert t.at[("PMK16", 30), "ess_bulk_log_likelihood"] == 200.0  # the smallest over splits
+    assert t.at[("PMK16", 30), "converged"] == 0.5 and t.at[("PM", 100), "converged"] == 0.0
+    tex = conv.convergence_latex(df, labels={"PM": "PM", "PMK16": "PM K=16"})
+    assert "PM K=16 & 30 & 2 & 4 & 1.01 & 1.06" in tex
+
+
+def test_ablation_table_bolds_the_best_and_shows_the_references():
+    df = _aggregate()
+    tex = conv.ablation_latex(df, _paper(), variants=["PM", "PMK16"], labels={"NN1": "1-NN"})
+    lines = tex.splitlines()
+    sr_line = next(ln for ln in lines if ln.startswith("best other method"))
+    assert r"\textbf{5.55}" in sr_line and "(SR)" in sr_line  # SR is the best of each column
+    assert not any(r"\textbf" in ln for ln in lines if ln.startswith("PMK16"))
+    assert any(ln.startswith(r"\emph{paper's PM}") and "8.24" in ln and "3.93" in ln for ln in lines)
+
+
+def test_sentences_count_the_cells_where_a_variant_beats_1nn():
+    text = " ".join(conv.why_pm_sentences(_aggregate(), _paper(), variants=["PM", "PMK16"], labels={}))
+    assert "beats NN1 in 2 of 2 cells" in text  # PMK16 (6.05, 7.05) < NN1 (7.05, 8.05)
+    assert "lower in 0 of 2 cells" in text  # SR is better still
+    assert "Convergence" in text and "PMK16 50\\%" in text and "PM 0\\%" in text
+    df = _aggregate()
+    df.loc[df["method"] == "PMK16", ["r_hat_log_likelihood", "r_hat_g_xy"]] = 1.0
+    text = " ".join(conv.why_pm_sentences(df, _paper(), variants=["PM", "PMK16"], labels={}))
+    assert "three quarters of their cells: PMK16." in text
+
+
+def test_trace_figure_overlays_chains_and_has_no_empty_panel():
+    rng = np.random.default_rng(0)
+    arrays = {
+        "chain_trace_log_likelihood": rng.normal(size=(4, 60)),
+        "chain_trace_g_xy": np.exp(rng.normal(size=(4, 60))),
+        "chain_trace_g_s": np.exp(rng.normal(size=(4, 60))),
+        "chain_trace_acceptance": np.ones((4, 60)),  # elliptical slice sampling: constant, no panel
+        "chain_draw_error": rng.normal(size=(4, 10)),
+        "n_burn_in": np.int64(30),
+    }
+    fig = conv.plot_chain_traces(arrays, title="t")
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 4 and all(ax.has_data() for ax in axes)
+    titles = {ax.get_title(): ax for ax in axes}
+    assert titles[conv.TRACE_LABELS["g_xy"]].get_yscale() == "log"
+    assert titles[conv.TRACE_LABELS["log_likelihood"]].get_yscale() == "linear"
+    assert all(len(ax.get_lines()) >= 4 for ax in axes)  # one line per chain
+    one = conv.plot_chain_traces({"trace_g_xy": np.exp(rng.normal(size=50))}, title="one chain", n_burn_in=10)
+    assert len([ax for ax in one.axes if ax.get_visible()]) == 1

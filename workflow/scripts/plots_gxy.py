@@ -1,0 +1,32 @@
+"""Snakemake adapter of rule plot_gxy: g_xy traces of the mechanism figure (K >= N, K < N, proper prior)."""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+
+from bsrbench.reporting.convergence import plot_gxy  # noqa: E402
+from bsrbench.reporting.plots import save  # noqa: E402
+from bsrbench.reporting.tables import read_results  # noqa: E402
+
+sm = snakemake  # noqa: F821
+df = read_results(sm.input.results)
+labels = dict(sm.params.labels)
+items = []
+for p in sm.input.predictions:
+    path = Path(p)
+    protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)
+    row = df[(df["protocol"] == protocol) & (df["source"] == source) & (df["activity"] == activity)
+             & (df["method"] == method) & (df["n_train"] == int(n[1:])) & (df["seed"] == int(seed[4:]))]
+    params = json.loads(row["params"].iloc[0]) if len(row) else {}
+    k = params.get("n_atoms", "?")
+    rel = "≥" if isinstance(k, int) and k >= int(n[1:]) else "<"
+    title = f"{labels.get(method, method)}: K={k} {rel} N={n[1:]}"
+    if params.get("a_xy") is not None:
+        title += f"\nGamma({params['a_xy']:g}, {params.get('b_xy', params.get('b0', 1e-6)):g}) prior"
+    with np.load(path) as f:
+        items.append((title, {key: f[key] for key in f.files}))
+save(plot_gxy(items), [sm.output.pdf, sm.output.png])
