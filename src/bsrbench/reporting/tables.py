@@ -83,8 +83,12 @@ def write_csv(df, path):
         df.to_csv(tmp, index=False)
 
 
-def read_results(path):
-    """Read the aggregate table and check its columns."""
+def read_results(path, design=None):
+    """Read the aggregate table and check its columns; with ``design``, check it is exactly that study.
+
+    ``design``: the configured study, ``{"protocols": [...], "pairs": [[source, activity], ...],
+    "methods": [...], "n_train": [...], "seeds": [...]}`` (see :func:`check_design`).
+    """
     try:
         df = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -92,7 +96,57 @@ def read_results(path):
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}")
+    if design is not None:
+        check_design(df, design, path=path)
     return df
+
+
+def check_design(df, design, *, path="results/aggregate/results.csv"):
+    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
+
+    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
+    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``). A table of another
+    configuration (say, one written before a method was added) must never be reported as this study's.
+    """
+    wanted = {
+        (p, s, a, m, int(n), int(k))
+        for p in design["protocols"]
+        for s, a in design["pairs"]
+        for m in design["methods"]
+        for n in design["n_train"]
+        for k in design["seeds"]
+    }
+    have = {
+        (p, s, a, m, int(n), int(k))
+        for p, s, a, m, n, k in df[KEY_COLUMNS].itertuples(index=False, name=None)
+    }
+    if wanted == have:
+        return
+    differ = []
+    for i, col in enumerate(KEY_COLUMNS):
+        got = sorted({r[i] for r in have})
+        conf = design_values(design, col)
+        if got != conf:
+            differ.append(f"{col}: the table has {got}, the configuration {conf}")
+    if not differ:
+        missing = sorted(wanted - have)
+        differ.append(f"e.g. no row for {dict(zip(KEY_COLUMNS, missing[0]))}" if missing else "")
+    raise DataFileError(
+        path,
+        f"does not match the configuration: {len(wanted - have)} configured job(s) without a row, "
+        f"{len(have - wanted)} row(s) of jobs not configured; " + "; ".join(differ)
+        + ". Expected exactly the configured study; rebuild it (snakemake results/aggregate/results.csv)",
+    )
+
+
+def design_values(design, column):
+    """The configured values of one key column (sorted), from a :func:`check_design` design."""
+    if column == "source":
+        return sorted({s for s, _ in design["pairs"]})
+    if column == "activity":
+        return sorted({a for _, a in design["pairs"]})
+    key = {"protocol": "protocols", "method": "methods", "seed": "seeds"}.get(column, column)
+    return sorted(design[key])
 
 
 def read_paper_tables(path):
@@ -169,8 +223,10 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     paper : DataFrame from :func:`read_paper_tables`.
     methods : method keys in column order; labels : {method: column label}.
     n_train : training sizes of the study (rows per activity).
-    status : {paper activity name: studied activity id, or a sentence saying why there is no row and how
-        to get the data}; a paper activity missing from ``status`` gets "no data".
+    status : {paper activity name: studied activity id, or {"reason": why there is no row, "hint": how to get
+        one}}; such rows show the reason and point to the note under the tables
+        (:func:`bsrbench.reporting.report.missing_data_note`); a paper activity missing from ``status`` gets
+        "no data".
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
         the random protocol, the paper's.
     """
@@ -194,7 +250,9 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
             rf"\caption{{{caption}}}",
             rf"\label{{tab:{table}-{source}-{protocol}}}",
-            r"\begin{tabular}{@{}p{2.9cm}r" + "c" * len(methods) + "@{}}",
+            # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
+            r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{2.9cm}r"
+            + "c" * len(methods) + "@{}}",
             r"\toprule",
             # fixed-width headers keep the columns apart in tables whose rows are all notes
             _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[1.8cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
@@ -202,9 +260,10 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
             name = latex_escape(paper_name)
-            activity = status.get(paper_name, f"no {source} data on this machine")
-            if activity not in set(sp["activity"]):
-                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\raggedright\emph{{{latex_escape(activity)}}}}}"
+            activity = status.get(paper_name, {"reason": f"no {source} data"})
+            if isinstance(activity, dict) or activity not in set(sp["activity"]):
+                why = activity.get("reason", "no data").split(";")[0] if isinstance(activity, dict) else activity
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{latex_escape(why)}; see the note below the tables}}}}"
                 out.append(_row([name, note]))
                 continue
             for n in sizes:
