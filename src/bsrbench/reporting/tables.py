@@ -223,8 +223,8 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     paper : DataFrame from :func:`read_paper_tables`.
     methods : method keys in column order; labels : {method: column label}.
     n_train : training sizes of the study (rows per activity).
-    status : {paper activity name: studied activity id, or {"reason": why there is no row, "hint": how to get
-        one}}; such rows show the reason and point to the note under the tables
+    status : {paper activity name: studied activity id, or {"kind": why there is no row, ...}} (see
+        :data:`bsrbench.reporting.report.NO_ROW`); such rows say why and point to the note under the tables
         (:func:`bsrbench.reporting.report.missing_data_note`); a paper activity missing from ``status`` gets
         "no data".
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
@@ -260,9 +260,11 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
             name = latex_escape(paper_name)
-            activity = status.get(paper_name, {"reason": f"no {source} data"})
+            activity = status.get(paper_name, {"kind": "none"})
             if isinstance(activity, dict) or activity not in set(sp["activity"]):
-                why = activity.get("reason", "no data").split(";")[0] if isinstance(activity, dict) else activity
+                from .report import NO_ROW
+
+                why = NO_ROW.get(activity.get("kind"), "no data") if isinstance(activity, dict) else activity
                 note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{latex_escape(why)}; see the note below the tables}}}}"
                 out.append(_row([name, note]))
                 continue
