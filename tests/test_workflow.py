@@ -152,6 +152,19 @@ def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(
     assert _snapshot(ci_run) == before
 
 
+def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
+    """`snakemake --report` does not check that outputs are current: the workflow refuses a stale aggregate."""
+    before = _snapshot(ci_run)
+    more = ci_run / "seeds.yaml"
+    more.write_text("n_seeds: 3\n")
+    res = smk("--configfile", "config/ci.yaml", str(more), "--report", "reports/report.html", cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode != 0, out[-3000:]
+    assert re.search(r"results\.csv: does not match the configuration.*seed: the table has \[0, 1\], "
+                     r"the configuration \[0, 1, 2\]", out), out[-3000:]
+    assert _snapshot(ci_run) == before
+
+
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
     from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes

@@ -2,6 +2,7 @@
 
 import importlib.util
 import os
+import sys
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -281,3 +282,19 @@ def study_targets():
         *figure_targets("pdf"),
         "reports/report.pdf",
     ]
+
+
+def _check_report_is_current():
+    """`snakemake --report` embeds the outputs as they are on disk, without checking that they are current, and
+    Snakefiles get no flag saying that a report is being built: so, on that command line, refuse an aggregate
+    table of another configuration (the one check that matters: the HTML report would show another study)."""
+    if not any(a == "--report" or a.startswith("--report=") for a in sys.argv):
+        return
+    aggregate = Path("results/aggregate/results.csv")
+    if aggregate.exists():
+        from bsrbench.reporting.tables import read_results
+
+        read_results(aggregate, design=study_design())
+
+
+_check_report_is_current()

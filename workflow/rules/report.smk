@@ -167,8 +167,14 @@ rule report_pdf:
     log:
         "logs/report/report_pdf.log",
     params:
-        # named on page 1 of the report, with the date, the git commit and the machine
-        configfiles=[os.path.relpath(f) for f in workflow.configfiles],
+        # named on page 1 of the report (with the date, the git commit and the machine), in the order they apply
+        configfiles=[
+            os.path.relpath(f)
+            for f in [
+                *[f for f in workflow.configfiles if f not in workflow.overwrite_configfiles],
+                *workflow.overwrite_configfiles,
+            ]
+        ],
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

@@ -13,7 +13,9 @@ sm = snakemake  # noqa: F821
 labels = dict(sm.params.labels)
 first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
 df = read_results(sm.input.results, design=dict(sm.params.design))
-defaults = {m: estimator_defaults(e) for m, e in df.drop_duplicates("method")[["method", "estimator"]].itertuples(index=False)}
+# the estimators' defaults: the parameter table shows every value a method ran with
+estimators = df.drop_duplicates("method")[["method", "estimator"]].itertuples(index=False)
+defaults = {m: estimator_defaults(e) for m, e in estimators}
 
 
 def caption(kind, source):

@@ -1,12 +1,17 @@
 """Figures of the study report (matplotlib, Agg backend, no TeX).
 
-* :func:`plot_error_vs_ntrain`: error against training-set size per activity, every method with error bars
-  (std over seeds), the paper's values as open markers.
-* :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals.
+Every figure is drawn at the size it is printed (at most :data:`TEXT_WIDTH` inches wide; the report includes
+it unscaled), so the font sizes below are printed sizes, none under :data:`MIN_FONT_PT`.
+
+* :func:`plot_error_vs_ntrain`: error against training-set size per activity of one source, every method
+  with error bars (std over seeds), the paper's values at the same sizes as open markers.
+* :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals, one
+  figure per source.
 * :func:`plot_trace`: per-sweep traces of an MCMC fit (the attribute ``trace_`` saved by a fit job).
-* :func:`plot_subjective`: the paper's Fig. 2 idea (input, true pose, predictions of several methods) for
-  one test frame per activity. Poses are drawn as angle profiles (the 57 joint angles), because the
-  precomputed features come with joint angles only, whose convention (Poser skeleton) is not documented.
+* :func:`plot_subjective_sticks`: the paper's Fig. 2 (silhouette, true pose, predicted poses as 3-D stick
+  figures) for one test frame per activity of a motion-capture source.
+* :func:`plot_subjective`: the same comparison for the precomputed features, which come with joint angles
+  only, in an undocumented (Poser) skeleton convention: the input histogram and the angle profiles.
 """
 
 import math
@@ -44,7 +49,7 @@ def _grid(n):
     cols = min(3, n)
     rows = math.ceil(n / cols)
     # at least two panels wide, so that a one-panel figure is not blown up to the text width
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * max(cols, 2), 2.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(min(TEXT_WIDTH, 3.2 * max(cols, 2)), 2.6 * rows), squeeze=False)
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat)
@@ -59,11 +64,17 @@ def _size_axis(ax, sizes):
     ax.set_xlim(min(sizes) / 1.25, max(sizes) * 1.25)
 
 
+def _minor_log_label(v, _pos=None):
+    """Labels of the minor ticks of a log axis: only 2, 3 and 5 times a power of ten (the others stay bare)."""
+    lead = v / 10 ** math.floor(math.log10(v)) if v > 0 else 0
+    return f"{v:g}" if round(lead, 6) in (2.0, 3.0, 5.0) else ""
+
+
 def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     """A figure of ``n`` panels (at most ``max_cols`` a row) that fits TEXT_WIDTH with a legend at the right."""
     cols = min(max_cols, max(1, n))
     rows = math.ceil(max(1, n) / cols)
-    width = min(TEXT_WIDTH, legend_width + 2.6 * cols)
+    width = min(TEXT_WIDTH, legend_width + (4.0 if cols == 1 else 2.6 * cols))
     fig, axes = plt.subplots(rows, cols, figsize=(width, panel_height * rows), squeeze=False, layout="constrained")
     for ax in axes.flat[n:]:
         ax.remove()
@@ -82,7 +93,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     s = summarize(df[df["source"] == source])
     acts = list(dict.fromkeys(df.loc[df["source"] == source, "activity"]))
     sizes = sorted(int(n) for n in (n_train if n_train is not None else df["n_train"].unique()))
-    fig, axes = _panels(len(acts))
+    fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     protocols = [p for p in ("random", "contiguous") if p in set(s["protocol"])]
     shown_paper = False
@@ -106,7 +117,12 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
         ax.set_title(activity_label(act, pa))
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+        ax.autoscale_view()
+        lo, hi = ax.get_ylim()
+        # less than a decade shown: label every minor tick, else only 2, 3 and 5 times a power of ten
+        every = hi / lo < 10
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            (lambda v, _pos=None: f"{v:g}") if every else _minor_log_label))
         _size_axis(ax, sizes)
         ax.set_xlabel("training frames N")
         ax.set_ylabel("mean angle error (degrees)")
@@ -207,7 +223,7 @@ def plot_subjective(panels, *, labels):
                              gridspec_kw={"width_ratios": [1, 2.6]})
     for (axx, axy), pnl in zip(axes, panels):
         axx.bar(np.arange(pnl["x"].size), pnl["x"], width=1.0, color="0.3")
-        axx.set_title(f"{pnl['label']}, test frame {pnl['frame']}: input", loc="left")
+        axx.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram", loc="left")
         axx.set_xlabel("shape-context histogram bin")
         axx.set_ylabel("weight")
         idx = np.arange(pnl["y_true"].size)
@@ -215,7 +231,7 @@ def plot_subjective(panels, *, labels):
         for i, (m, y) in enumerate(pnl["preds"].items()):
             axy.plot(idx, y, lw=0.9, color=f"C{i}", marker=_MARKERS[i % 10], ms=3, mfc="none",
                      label=f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)")
-        axy.set_title("joint angles: true and predicted (error on this frame)", loc="left")
+        axy.set_title("the true pose and the predicted poses\n(57 joint angles; error on this frame)", loc="left")
         axy.set_xlabel("joint angle index")
         axy.set_ylabel("degrees")
         axy.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
@@ -278,49 +294,66 @@ def pose_positions(bvh, trial_frame, pose_joints, angles):
     return pos - pos[0]
 
 
-def _stick(ax, pos, parents, color, lw=1.4):
+def oblique_projection(pos, *, elev=12.0, azim=35.0):
+    """Screen coordinates (J, 2) of joint positions (J, 3; y up) seen from an oblique viewpoint.
+
+    The body is turned by ``azim`` degrees about the vertical axis, then seen from ``elev`` degrees above
+    the horizontal (orthographic projection): screen x is the turned x, screen y the height tilted
+    towards the viewer.
+    """
+    pos = np.asarray(pos, dtype=float)
+    a, e = np.deg2rad(azim), np.deg2rad(elev)
+    x = pos[:, 0] * np.cos(a) + pos[:, 2] * np.sin(a)
+    depth = -pos[:, 0] * np.sin(a) + pos[:, 2] * np.cos(a)
+    y = pos[:, 1] * np.cos(e) - depth * np.sin(e)
+    return np.column_stack([x, y])
+
+
+def _stick(ax, xy, parents, color, lw=1.4):
     for j, p in enumerate(parents):
         if p >= 0:
-            # world y is up: draw (x, z, y) so that the figure stands upright
-            ax.plot([pos[p, 0], pos[j, 0]], [pos[p, 2], pos[j, 2]], [pos[p, 1], pos[j, 1]], color=color, lw=lw)
+            ax.plot([xy[p, 0], xy[j, 0]], [xy[p, 1], xy[j, 1]], color=color, lw=lw, solid_capstyle="round")
 
 
-def plot_subjective_sticks(panels, *, labels, elev=15, azim=-60):
-    """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as 3-D stick figures.
+def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
+    """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as stick figures.
 
     ``panels``: dicts with ``label``, ``frame``, ``silhouette`` (H, W bool), ``parents``, ``true`` (J, 3),
-    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}). Every pose is seen
-    from the same oblique viewpoint (``elev``, ``azim`` in degrees); each prediction is drawn over the true
-    pose in light grey.
+    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}). Every 3-D pose is
+    drawn from the same oblique viewpoint (:func:`oblique_projection`) at the same scale within a row; each
+    prediction is drawn over the true pose in light grey.
     """
     n = max(1, len(panels))
     ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
-    cell = TEXT_WIDTH / ncol
-    fig = plt.figure(figsize=(TEXT_WIDTH, 1.45 * cell * n))
-    fig.subplots_adjust(left=0, right=1, bottom=0, top=1 - 0.25 / (1.45 * cell * n), wspace=0.02, hspace=0.12)
-    for r, pnl in enumerate(panels):
-        ax = fig.add_subplot(n, ncol, r * ncol + 1)
-        ax.imshow(pnl["silhouette"], cmap="gray_r", interpolation="nearest")
+    row_h = 2.5
+    fig, axes = plt.subplots(n, ncol, figsize=(TEXT_WIDTH, row_h * n), squeeze=False, layout="constrained")
+    for axrow, pnl in zip(axes, panels):
+        ax = axrow[0]
+        sil = np.asarray(pnl["silhouette"], dtype=bool)
+        rows, cols = np.nonzero(sil)
+        if rows.size:  # crop to the silhouette, with a margin
+            m = max(2, int(0.05 * sil.shape[0]))
+            sil = sil[max(rows.min() - m, 0) : rows.max() + m + 1, max(cols.min() - m, 0) : cols.max() + m + 1]
+        ax.imshow(sil, cmap="gray_r", interpolation="nearest")
         ax.set_axis_off()
-        ax.set_title(f"{pnl['label']},\ntest frame {pnl['frame']}: input")
-        allpos = np.concatenate([pnl["true"]] + list(pnl["preds"].values()))
-        lo, hi = allpos.min(axis=0), allpos.max(axis=0)
-        half = 0.5 * float((hi - lo).max())
-        mid = 0.5 * (hi + lo)
-        figs = [("true pose", pnl["true"], "k")] + [
-            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", pos, f"C{i}")
-            for i, (m, pos) in enumerate(pnl["preds"].items())
+        ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input silhouette")
+        view = {k: oblique_projection(v, elev=elev, azim=azim) for k, v in
+                [("true", pnl["true"])] + list(pnl["preds"].items())}
+        allxy = np.concatenate(list(view.values()))
+        lo, hi = allxy.min(axis=0), allxy.max(axis=0)
+        pad = 0.05 * float((hi - lo).max())
+        figs = [("true pose", "true", "k")] + [
+            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", m, f"C{i}") for i, m in enumerate(pnl["preds"])
         ]
-        for c, (title, pos, color) in enumerate(figs):
-            ax = fig.add_subplot(n, ncol, r * ncol + 2 + c, projection="3d")
-            if c > 0:
-                _stick(ax, pnl["true"], pnl["parents"], "0.8", lw=1.0)
-            _stick(ax, pos, pnl["parents"], color)
-            ax.set_xlim(mid[0] - half, mid[0] + half)
-            ax.set_ylim(mid[2] - half, mid[2] + half)
-            ax.set_zlim(mid[1] - half, mid[1] + half)
-            ax.view_init(elev=elev, azim=azim)
-            ax.set_box_aspect((1, 1, 1), zoom=1.25)
+        for ax, (title, key, color) in zip(axrow[1:], figs):
+            if key != "true":
+                _stick(ax, view["true"], pnl["parents"], "0.78", lw=1.3)
+            _stick(ax, view[key], pnl["parents"], color, lw=1.8)
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(lo[1] - pad, hi[1] + pad)
+            ax.set_aspect("equal")
             ax.set_axis_off()
-            ax.set_title(title, y=0.97)
+            ax.set_title(title)
+        for ax in axrow[2 + len(pnl["preds"]) :]:
+            ax.set_visible(False)
     return fig

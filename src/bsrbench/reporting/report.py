@@ -60,6 +60,12 @@ def _for_how_many(ok):
     return f"for {k} of the {n} {word} studied ({_names(ok.index[ok])}), but not for {_names(ok.index[~ok])}"
 
 
+def _methods(df, labels):
+    """The methods of ``df`` in the order of ``labels`` (the configuration's ``run``), then any others."""
+    have = list(dict.fromkeys(df["method"]))
+    return [m for m in labels if m in have] + [m for m in have if m not in labels]
+
+
 def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     """Plain sentences (LaTeX) saying where the paper's claims hold on these data and where they do not.
 
@@ -68,7 +74,7 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     """
     out = []
     s = summarize(df)
-    methods = list(dict.fromkeys(df["method"]))
+    methods = _methods(df, labels)
     baselines = [m for m in methods if labels.get(m, m) in PAPER_METHODS and m != pm]
     refs = [m for m in references if m in methods]
     L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
@@ -120,10 +126,10 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
                 ok = have[pm] < have[r]
                 diff = float(np.median(have[pm] - have[r])) if len(have) else float("nan")
                 side = "PM's error is higher" if diff > 0 else "PM's error is lower"
+                over = ", median over these activities," if len(have) > 1 else ""
                 out.append(
                     f"At $N={n}${tag}, PM has a lower mean error than {L(r)} {_for_how_many(ok)}; "
-                    f"PM's mean error minus {L(r)}'s, median over these activities, is {diff:+.2f} degrees "
-                    f"({side})."
+                    f"PM's mean error minus {L(r)}'s{over} is {diff:+.2f} degrees ({side})."
                 )
     # paired per split: the same split for every method, so compare seed by seed
     r = df[df["protocol"] == "random"]
@@ -144,13 +150,15 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
         m = sr.merge(paper, left_on=["key", "n_train", "label"], right_on=["key", "n_train", "method"],
                      suffixes=("", "_paper"))
         per_source = []
+        order = [labels.get(mm, mm) for mm in methods]
         for src in sources:
             g_src = m[m["source"] == src]
             if g_src.empty:
                 continue
+            groups = dict(list(g_src.groupby("label", sort=False)))
             parts = [
                 f"{latex_escape(lab)} {float(np.median(g['mean'] / g['mean_deg'])):.2f}"
-                for lab, g in g_src.groupby("label", sort=False)
+                for lab, g in sorted(groups.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else 99)
             ]
             per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
         if per_source:
@@ -189,7 +197,9 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             if cs.empty:
                 continue
             parts = [
-                f"{L(mm)} {100 * float(g['coverage_90'].mean()):.0f}\\%" for mm, g in cs.groupby("method", sort=False)
+                f"{L(mm)} {100 * float(cs.loc[cs['method'] == mm, 'coverage_90'].mean()):.0f}\\%"
+                for mm in methods
+                if mm in set(cs["method"])
             ]
             per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
         if per_source:
@@ -206,7 +216,7 @@ def _fmt_value(v):
     return str(v)
 
 
-def parameters_used(df, *, defaults):
+def parameters_used(df, *, defaults, labels=None):
     """Per method, the parameters its fits actually used: ``{method: (set, default)}``.
 
     ``set``: ``{name: [values]}`` of the parameters given by the configuration or chosen by CV (the aggregate
@@ -215,7 +225,7 @@ def parameters_used(df, *, defaults):
     :func:`bsrbench.study.estimator_defaults`), i.e. the values it ran with. ``random_state`` is set per job.
     """
     out = {}
-    for m in dict.fromkeys(df["method"]):
+    for m in _methods(df, labels or {}):
         seen = {}
         for text in df.loc[df["method"] == m, "params"].astype(str):
             try:
@@ -241,13 +251,13 @@ def parameters_used(df, *, defaults):
 def parameters_table(df, *, labels, defaults):
     """LaTeX table: per method, the estimator, the parameters set by the configuration or CV, and the estimator
     defaults it ran with (see :func:`parameters_used`)."""
-    used = parameters_used(df, defaults=defaults)
+    used = parameters_used(df, defaults=defaults, labels=labels)
     est = {}
     if "estimator" in df.columns:
         est = df.drop_duplicates("method").set_index("method")["estimator"].to_dict()
 
     def cell(pairs):
-        items = [latex_escape(f"{k}={v}") for k, v in pairs]
+        items = [latex_escape(f"{k}={v}").replace("-", "-{}") for k, v in pairs]
         return ", ".join(items) if items else r"\textrm{none}"
 
     rows = []
@@ -265,8 +275,8 @@ def parameters_table(df, *, labels, defaults):
         r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
         r"others.}",
         r"\label{tab:parameters}",
-        r"\begin{tabularx}{\linewidth}{@{}ll>{\raggedright\arraybackslash\ttfamily}X"
-        r">{\raggedright\arraybackslash\ttfamily}X@{}}",
+        r"\begin{tabularx}{\linewidth}{@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
+        r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}}",
         r"\toprule",
         r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\",
         r"\midrule",
@@ -287,16 +297,22 @@ def setup_text(df, *, labels):
     seeds = sorted(df["seed"].unique())
     sizes = sorted(df["n_train"].unique())
     cv = sorted(df["cv"].dropna().unique()) if "cv" in df.columns else []
-    methods = [latex_escape(labels.get(m, m)) for m in dict.fromkeys(df["method"])]
+    methods = [latex_escape(labels.get(m, m)) for m in _methods(df, labels)]
+    how = {
+        "per_size": "chosen by cross-validation once per activity, method and $N$, on the training frames of "
+        "seed 0, and used for every seed",
+        "per_job": "chosen by cross-validation on the training frames of each split",
+        "none": "as configured (no cross-validation)",
+    }
     return [
         "Data: " + "; ".join(f"{latex_escape(s)}: {', '.join(a)}" for s, a in sources.items()) + ".",
         f"Methods: {', '.join(methods)}.",
         f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} splits (seeds) per size; "
         f"protocol: {latex_escape(', '.join(sorted(df['protocol'].unique())))}; "
         f"pose transform: {latex_escape(', '.join(sorted(df['pose_transform'].unique())))}.",
-        "Hyper-parameters: " + latex_escape(", ".join(cv) or "n/a") + " (per\\_size: one cross-validation per "
-        "activity, method and $N$ on the training frames of seed 0, used for every seed; per\\_job: one per split; "
-        "none: the configured parameters). Table~\\ref{tab:parameters} lists the parameters each method ran with.",
+        "Hyper-parameters: " + "; ".join(how.get(c, latex_escape(c)) for c in cv or ["none"])
+        + " (configuration key \\texttt{cv.mode}: " + latex_escape(", ".join(cv) or "none") + "). "
+        "Table~\\ref{tab:parameters} lists the parameters each method ran with.",
     ]
 
 
@@ -310,6 +326,12 @@ def write_generated(path, df, paper, *, labels, defaults=None):
     body += [r"\end{itemize}", ""]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(body))
+
+
+def tt(text):
+    """``text`` in typewriter type, exactly as typed: "--" stays two ASCII hyphens (no en-dash ligature), so a
+    command copied from the PDF runs."""
+    return r"\texttt{" + latex_escape(text).replace("-", "-{}") + "}"
 
 
 #: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
@@ -338,7 +360,6 @@ def missing_data_note(source, status):
                 by_kind.setdefault(st.get("kind", "none"), []).append((pa, st))
     if not by_kind:
         return ""
-    tt = lambda t: r"\texttt{" + latex_escape(t) + "}"  # noqa: E731
     lines = []
     for kind, items in by_kind.items():
         names = _listing([nobreak(pa) for pa, _ in items])
@@ -366,8 +387,8 @@ def write_body(path, *, tables, figures, notes=None):
 
     ``tables``: paths of the table fragments (``table<T>_<source>.tex``); after the last table of a source
     comes ``notes[source]`` (see :func:`missing_data_note`). ``figures``: (path, caption) pairs. Figures are
-    included at their natural size: they are drawn at the size they are printed (no font below 7 pt), and
-    one wider than the text would show as an overfull box in the LaTeX log.
+    included at their natural size (``\fitgraphics`` of reports/report.tex): they are drawn at the size they
+    are printed, with no font below 7 pt; one wider than the text is scaled down to it.
     """
     notes = notes or {}
     tables = [Path(t) for t in tables]
@@ -384,7 +405,7 @@ def write_body(path, *, tables, figures, notes=None):
         lines += [
             r"\begin{figure}[H]",
             r"\centering",
-            rf"\includegraphics{{{f.as_posix()}}}",
+            rf"\fitgraphics{{{f.as_posix()}}}",
             rf"\caption{{{caption}}}",
             rf"\label{{fig:{f.stem}}}",
             r"\end{figure}",
@@ -424,7 +445,7 @@ def build_header(*, configfiles, when=None, root="."):
     rows = [
         ("Built", when.strftime("%Y-%m-%d %H:%M UTC")),
         ("Code", code),
-        ("Configuration", ", ".join(str(c) for c in configfiles) or "none"),
+        ("Configuration", (", ".join(map(str, configfiles)) + " (in the order they apply)") if configfiles else "none"),
         ("Machine", machine),
     ]
     body = "\n".join(rf"{k} & {latex_escape(v)} \\" for k, v in rows)

@@ -233,6 +233,8 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     if table not in PAPER_TABLES:
         raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
     ncol = 2 + len(methods)
+    # fixed-width method columns that fill the 17.8 cm text width (activity 3.1 cm, N 0.8 cm, 3.5 pt gaps)
+    box = min(1.8, (17.8 - 3.1 - 0.8 - 0.25 * (len(methods) + 1)) / max(1, len(methods)))
     sizes = sorted(int(n) for n in n_train)
     s = summary[summary["source"] == source]
     p = paper[paper["table"] == table]
@@ -247,15 +249,15 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             caption += " Italic rows: the paper's numbers."
         out += [
             r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
+            r"\centering\footnotesize\setlength{\tabcolsep}{3.5pt}",
             rf"\caption{{{caption}}}",
             rf"\label{{tab:{table}-{source}-{protocol}}}",
             # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
-            r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{2.9cm}r"
+            r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{3.1cm}r"
             + "c" * len(methods) + "@{}}",
             r"\toprule",
             # fixed-width headers keep the columns apart in tables whose rows are all notes
-            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[1.8cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
+            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[{box:.2f}cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
         ]
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
@@ -265,7 +267,8 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                 from .report import NO_ROW
 
                 why = NO_ROW.get(activity.get("kind"), "no data") if isinstance(activity, dict) else activity
-                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{latex_escape(why)}; see the note below the tables}}}}"
+                why = latex_escape(why) + "; see the note below the tables"
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{why}}}}}"
                 out.append(_row([name, note]))
                 continue
             for n in sizes:
