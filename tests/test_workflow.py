@@ -187,6 +187,9 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
     for field in ("Built", "Code", "Configuration", "Machine"):
         assert re.search(rf"^\s*{field}\s", page1, re.M), page1[:2000]
     assert "config/ci.yaml" in page1 and "UTC" in page1
+    # typewriter text copies as typed (underscores are glyphs, not rules)
+    text = subprocess.run(["pdftotext", str(ci_run / "reports" / "report.pdf"), "-"], capture_output=True, text=True).stdout
+    assert "study_activities.hsc" in text
 
 
 def test_ci_rerun_is_a_no_op(ci_run):
