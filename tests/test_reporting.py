@@ -7,14 +7,22 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bsrbench.errors import InputError
-from bsrbench.reporting.report import findings
+from bsrbench.errors import DataFileError, InputError
+from bsrbench.reporting.report import (
+    findings,
+    latex_log_problems,
+    missing_data_note,
+    parameters_table,
+    parameters_used,
+)
 from bsrbench.reporting.tables import (
+    PAPER_TABLES,
     aggregate_rows,
     best_mask,
     format_cell,
     latex_table,
     paper_key,
+    read_results,
     summarize,
 )
 
@@ -79,7 +87,7 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
                                ("golf", "NN1"): [6.0, 7.0]}))
     text = latex_table(summarize(df), _paper(), source="hsc", table="I", methods=["RVM", "PM", "NN1"],
                        labels=LABELS, n_train=[30], protocols=["random"],
-                       status={"Golf": "golf", "Acrobatics": "get it with: snakemake acrobatics_rule"})
+                       status={"Golf": "golf", "Acrobatics": {"kind": "download", "activity": "acrobatics"}})
     assert "toprule" in text and "multirow" not in text and "siunitx" not in text
     lines = [ln for ln in text.splitlines() if ln.endswith(r"\\")]
     assert re.sub(r"\\makebox\[[^]]*\]\{([^}]*)\}", r"\1", lines[0]).startswith(r"Activity & Tr.\ \# & RVM & PM & 1-NN")
@@ -92,8 +100,8 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
     paper = lines[lines.index(golf[0]) + 1]
     assert paper.startswith(r"\emph{\quad paper}") and r"\textbf{8.24}" in paper and "14.51" in paper
     acro = [ln for ln in lines if ln.startswith("Acrobatics")]
-    assert len(acro) == 1 and "multicolumn{4}" in acro[0] and "acrobatics\\_rule" in acro[0]
-    assert any(ln.startswith("Navigate &") and "no hsc data" in ln for ln in lines)
+    assert len(acro) == 1 and "multicolumn{4}" in acro[0] and "data not on this machine; see the note" in acro[0]
+    assert any(ln.startswith("Navigate &") and "no data set of this source" in ln for ln in lines)
     # every one of the paper's Table I activities has a row
     assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == ["Acrobatics", "Navigate", "Golf"]
 
@@ -118,12 +126,137 @@ def test_findings_count_where_the_claim_holds():
         ("acrobatics", "PM"): [16.0, 17.0], ("acrobatics", "RVM"): [12.0, 13.0], ("acrobatics", "NN1"): [9.0, 9.5],
     }))
     text = "\n".join(findings(df, _paper(), labels=LABELS))
-    assert re.search(r"PM beats every baseline \(RVM\) at \$N=30\$'': holds only partly, for 1 of 2 activities", text)
-    assert "fails for Acrobatics (hsc)" in text
-    assert "lowest among the paper's methods in 1 of 2 (activity, $N$) rows" in text
-    assert "including the references in 0 of 2" in text
-    assert "PM is lower for 0 of 2 activities" in text  # 1-NN beats PM on both
-    assert "on 2 of 4 random splits" in text
-    # ours / paper: PM golf 8.5/8.241, acrobatics 16.5/12.595 -> median of the two ratios
+    plain = re.sub(r"\\mbox\{([^}]*)\}", r"\1", text)
+    assert ("At $N=30$, PM has a lower mean error than RVM for 1 of the 2 activities studied (Golf (hsc)), "
+            "but not for Acrobatics (hsc).") in plain
+    assert "a lower mean error than RVM in 1 of the 2 (activity, $N$) rows" in plain
+    assert "(the references 1-NN included) in 0 of the 2 rows" in plain
+    # 1-NN beats PM on both: the count says "none" and the sign is spelled out
+    assert ("PM has a lower mean error than 1-NN for none of the 2 activities studied (Acrobatics (hsc), Golf (hsc)); "
+            "PM's mean error minus 1-NN's, median over these activities, is +4.25 degrees "
+            "(PM's error is higher).") in plain
+    assert "on 2 of the 4 splits" in plain
+    # ours / paper: PM golf 8.5/8.241, acrobatics 16.5/12.595 -> median of the two ratios, per source
     ratio = np.median([8.5 / 8.241, 16.5 / 12.595])
-    assert f"PM {ratio:.2f}" in text
+    assert f"on the hsc data, RVM {np.median([12.5 / 14.514, 12.5 / 15.963]):.2f}, PM {ratio:.2f}." in plain
+    assert "holds" not in plain and "0 of 2 activities" not in plain
+
+
+def test_ratio_to_the_paper_and_coverage_are_given_per_source():
+    rows = _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]})
+    mocap = [dict(r, source="mocap", error=r["error"] / 4) for r in rows]
+    for r in rows + mocap:
+        r["coverage_90"] = 0.5 if r["source"] == "hsc" else 0.9
+    df = aggregate_rows(rows + mocap)
+    text = "\n".join(findings(df, _paper(), labels=LABELS))
+    hsc_pm, mocap_pm = 8.5 / 8.241, 8.5 / 4 / 8.241
+    # methods in the configuration's order (that of the labels)
+    assert (f"on the hsc data, RVM {12.5 / 14.514:.2f}, PM {hsc_pm:.2f}; "
+            f"on the mocap data, RVM {12.5 / 4 / 14.514:.2f}, PM {mocap_pm:.2f}.") in text
+    assert r"on the hsc data, RVM 50\%, PM 50\%; on the mocap data, RVM 90\%, PM 90\%." in text
+
+
+def test_findings_for_all_and_for_none():
+    all_ok = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0], ("acrobatics", "PM"): [1.0],
+                                   ("acrobatics", "RVM"): [2.0]}))
+    text = "\n".join(findings(all_ok, None, labels=LABELS))
+    assert "than RVM for all 2 activities studied" in text
+    one = aggregate_rows(_rows({("golf", "PM"): [3.0], ("golf", "RVM"): [2.0]}))
+    assert "than RVM for the activity studied (\\mbox{Golf (hsc)})" in "\n".join(findings(one, None, labels=LABELS))
+
+
+DESIGN = {"protocols": ["random"], "pairs": [["hsc", "golf"]], "methods": ["PM", "RVM"], "n_train": [30],
+          "seeds": [0, 1]}
+
+
+def test_an_aggregate_of_another_configuration_is_never_reported(tmp_path):
+    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
+    path = tmp_path / "results.csv"
+    df.to_csv(path, index=False)
+    assert len(read_results(path, design=DESIGN)) == 4
+    # a method added to the configuration (the stale-results case), a seed or a size more, an activity less
+    for change, message in [
+        ({"methods": ["PM", "RVM", "GPR"]},
+         r"2 configured job\(s\) without a row.*method: the table has \['PM', 'RVM'\], the configuration \['GPR', 'PM', 'RVM'\]"),
+        ({"seeds": [0, 1, 2]}, r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]"),
+        ({"n_train": [60]}, r"n_train: the table has \[30\], the configuration \[60\]"),
+        ({"methods": ["PM"]}, r"2 row\(s\) of jobs not configured"),
+        ({"protocols": ["contiguous"]}, r"protocol: the table has \['random'\]"),
+    ]:
+        with pytest.raises(DataFileError, match=re.escape(str(path)) + ".*does not match the configuration.*"
+                           + message):
+            read_results(path, design={**DESIGN, **change})
+    # every value present but one job missing
+    df.drop(index=0).to_csv(path, index=False)
+    with pytest.raises(DataFileError, match=r"1 configured job\(s\) without a row.*e\.g\. no row for"):
+        read_results(path, design=DESIGN)
+
+
+def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
+    status = {
+        "Golf": "golf",
+        "Acrobatics": {"kind": "download", "activity": "acrobatics",
+                       "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz"},
+        "Run": {"kind": "here", "activity": "run"},
+        "Navigate": {"kind": "none"},
+    }
+    note = missing_data_note("mocap", status)
+    assert note.count(r"\paragraph") == 1
+    # "--" stays two hyphens in the PDF (no en-dash ligature), "_" an underscore
+    assert r"\texttt{snakemake -{}-{}cores 2 results/features/mocap/acrobatics.npz}" in note
+    assert r"add \texttt{run} to the configuration key \texttt{study\_activities.mocap}" in note
+    # activities without an entry are grouped with those of kind "none"
+    assert r"\mbox{Navigate}, \mbox{Throw and catch football}" in note and "no mocap data set" in note
+    assert "Golf" not in note
+    assert missing_data_note("hsc", {pa: "x" for t in PAPER_TABLES.values() for pa in t}) == ""
+
+
+def test_parameters_table_lists_configured_cv_chosen_and_default_values():
+    rows = _rows({("golf", "PM"): [8.0, 9.0]})
+    rows[0]["params"], rows[1]["params"] = {"a": 1, "k": 64}, {"a": 1, "k": 128}
+    df = aggregate_rows(rows)
+    used = parameters_used(df, defaults={"PM": {"a": 5, "k": 3, "thin": 10, "random_state": None}})
+    assert used["PM"] == ({"a": [1], "k": [64, 128]}, {"thin": 10, "random_state": "per job"})
+    table = parameters_table(df, labels=LABELS, defaults={"PM": {"thin": 10}})
+    assert r"a=1, k=64|128 (CV)" in table and "thin=10" in table and "tabularx" in table
+
+
+def test_latex_log_problems_flags_overfull_boxes_and_undefined_references():
+    log = "\n".join([
+        r"Overfull \hbox (0.5pt too wide) in paragraph at lines 3--4",
+        r"Overfull \hbox (12.3pt too wide) in paragraph at lines 9--10",
+        r"Overfull \vbox (3.0pt too high) has occurred while \output is active",
+        r"LaTeX Warning: Reference `tab:parameters' on page 1 undefined on input line 40.",
+        r"Underfull \hbox (badness 10000) in paragraph at lines 1--2",
+    ])
+    problems = latex_log_problems(log)
+    assert len(problems) == 3 and "12.3pt" in problems[0] and "3.0pt" in problems[1] and "tab:parameters" in problems[2]
+    assert latex_log_problems("Overfull \\hbox (0.9pt too wide)") == []
+
+
+def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
+    """The report includes figures unscaled, so matplotlib's sizes are the printed sizes."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import MIN_FONT_PT, TEXT_WIDTH, plot_calibration, plot_error_vs_ntrain
+
+    rows = []
+    for n in (30, 100):
+        for r in _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("acrobatics", "PM"): [5.0, 6.0],
+                        ("acrobatics", "RVM"): [7.0, 7.5]}):
+            rows.append(dict(r, n_train=n, coverage_50=0.4, coverage_90=0.8))
+    df = aggregate_rows(rows)
+    figs = [
+        plot_error_vs_ntrain(df, _paper(), source="hsc", methods=["PM", "RVM"], labels=LABELS),
+        plot_calibration(df, methods=["PM", "RVM"], labels=LABELS, source="hsc"),
+    ]
+    for fig in figs:
+        fig.canvas.draw()
+        bbox = fig.get_tightbbox(fig.canvas.get_renderer())
+        assert bbox.width <= TEXT_WIDTH + 0.01
+        sizes = [t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()]
+        assert sizes and min(sizes) >= MIN_FONT_PT
+        ticks = [float(t.get_text()) for t in fig.axes[0].get_xticklabels() if t.get_text()]
+        if ticks and fig is figs[0]:
+            assert ticks == [30.0, 100.0]  # only the sizes studied
+        plt.close(fig)

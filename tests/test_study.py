@@ -9,8 +9,10 @@ from bsrbench.errors import DataFileError, InputError
 from bsrbench.poses import HeadingTransform
 from bsrbench.study import (
     JobSpec,
+    check_method_settings,
     cross_validate,
     default_grid,
+    estimator_defaults,
     inverse_std,
     load_estimator_class,
     load_features,
@@ -73,6 +75,44 @@ def test_estimator_loading_errors_name_the_path_and_parameter():
     with pytest.raises(InputError, match=r"no parameter\(s\) \['alpah'\]"):
         make_estimator(f"{REF}:RidgeRegressor", {"alpah": 1.0})
     assert default_grid(f"{REF}:RidgeRegressor") == {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]}
+
+
+@pytest.mark.parametrize(
+    "setting, message",
+    [
+        ({"estimator": "bsrbench.models.gpr:GPR"},
+         r"'methods\.M\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*cannot import module"),
+        ({"estimator": f"{REF}:Nope"}, r"'methods\.M\.estimator'.*no attribute 'Nope'"),
+        ({"estimator": f"{REF}:RidgeRegressor", "params": {"alpah": 1.0}},
+         r"'methods\.M\.params': alpah: 1\.0 is not a parameter of .*RidgeRegressor; expected one of \['alpha'"),
+        ({"estimator": f"{REF}:RidgeRegressor", "cv_params": {"folds": 3}}, r"'methods\.M\.cv_params': folds: 3"),
+        ({"estimator": f"{REF}:RidgeRegressor", "grid": {"lambda": [1.0]}}, r"'methods\.M\.grid': lambda: \[1\.0\]"),
+        ({"estimator": f"{REF}:RidgeRegressor", "grid": {"alpha": 1.0}},
+         r"'methods\.M\.grid': alpha: 1\.0; expected a non-empty list"),
+        ({"estimator": f"{REF}:RidgeRegressor", "params": [1.0]}, r"'methods\.M\.params': expected a mapping"),
+    ],
+)
+def test_method_settings_are_checked_before_any_job(setting, message):
+    with pytest.raises(InputError, match=message):
+        check_method_settings({"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok", "M"])
+    check_method_settings({"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok"])  # M not run
+    with pytest.raises(InputError, match=r"'run': unknown method 'X'"):
+        check_method_settings({"M": setting}, ["X"])
+
+
+def test_method_settings_accept_the_shipped_configurations_and_report_defaults():
+    import yaml
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    base = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    check_method_settings(base["methods"], base["run"])  # default grids included
+    for name in ("paper.yaml", "ci.yaml"):
+        over = yaml.safe_load((root / "config" / name).read_text())
+        methods = {m: {**base["methods"].get(m, {}), **s} for m, s in over["methods"].items()}
+        check_method_settings({**base["methods"], **methods}, over.get("run", base["run"]))
+    d = estimator_defaults(f"{REF}:RidgeRegressor")
+    assert d == {"alpha": 1.0, "standardize": True}
 
 
 def test_inverse_std_of_heading_matches_monte_carlo():

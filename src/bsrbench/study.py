@@ -70,6 +70,81 @@ def make_estimator(path, params, random_state=None):
     return cls(**params)
 
 
+def estimator_parameters(path):
+    """Names of the constructor parameters of the estimator at ``path``, or None if it takes ``**kwargs``.
+
+    scikit-learn estimators (whose ``get_params`` reads the same signature) take exactly these keywords.
+    Raises InputError (naming ``path``) if the class cannot be imported.
+    """
+    cls = load_estimator_class(path)
+    sig = inspect.signature(cls)
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in sig.parameters.values()):
+        return None
+    return sorted(
+        n for n, p in sig.parameters.items() if p.kind not in (inspect.Parameter.VAR_POSITIONAL,)
+    )
+
+
+def estimator_defaults(path):
+    """``{parameter: default}`` of the estimator at ``path`` (``get_params()`` of a default instance)."""
+    cls = load_estimator_class(path)
+    try:
+        return dict(cls().get_params(deep=False))
+    except (TypeError, AttributeError):
+        return {
+            n: p.default
+            for n, p in inspect.signature(cls).parameters.items()
+            if p.default is not inspect.Parameter.empty
+        }
+
+
+def check_method_settings(methods, run):
+    """Check, before any job runs, that every method in ``run`` can be built as configured.
+
+    ``methods``: the configuration's ``methods`` mapping ({name: {estimator, params, cv_params, grid, ...}});
+    ``run``: the names of the methods to run. For each method run, its estimator class must import and every
+    key of ``params``, ``cv_params`` and ``grid`` (the module's ``DEFAULT_GRID`` for ``grid: default``) must be
+    a constructor parameter of it. Raises InputError naming the configuration key, the value and what was
+    expected.
+    """
+    for name in run:
+        if name not in methods:
+            raise InputError(f"config key 'run': unknown method {name!r}; defined under 'methods': {sorted(methods)}")
+        setting = methods[name] or {}
+        path = setting.get("estimator")
+        try:
+            accepted = estimator_parameters(path)
+        except InputError as exc:
+            raise InputError(
+                f"config key 'methods.{name}.estimator': {path!r} cannot be used ({exc}); expected "
+                f"'package.module:ClassName' naming an importable estimator class"
+            ) from None
+        grid = setting.get("grid", "default")
+        where_grid = f"methods.{name}.grid"
+        if grid == "default":
+            grid = default_grid(path)
+            where_grid += f" (default: {load_estimator_class(path).__module__}.DEFAULT_GRID)"
+        parts = [
+            (f"methods.{name}.params", setting.get("params") or {}),
+            (f"methods.{name}.cv_params", setting.get("cv_params") or {}),
+            (where_grid, grid or {}),
+        ]
+        for key, values in parts:
+            if not isinstance(values, dict):
+                raise InputError(f"config key '{key}': expected a mapping {{parameter: value}}; got {values!r}")
+            if accepted is None:
+                continue
+            for p, v in values.items():
+                if p not in accepted:
+                    raise InputError(
+                        f"config key '{key}': {p}: {v!r} is not a parameter of {path}; "
+                        f"expected one of {accepted}"
+                    )
+        for p, v in (grid or {}).items():
+            if not isinstance(v, (list, tuple)) or not v:
+                raise InputError(f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values")
+
+
 def load_features(path):
     """Read a features file (``X`` frames x features, ``Y`` frames x angles in degrees) and check it."""
     path = Path(path)

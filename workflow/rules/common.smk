@@ -1,6 +1,8 @@
 # Configuration validation, cross-checks and helpers of the study rules (fit, aggregate, report).
 
 import importlib.util
+import os
+import sys
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -34,14 +36,11 @@ SKIPPED_CELLS = {}
 
 def _check_study_config():
     """Cross-checks the JSON schema cannot make; raise ValueError naming the key before any job runs."""
-    from bsrbench.study import max_n_train
+    from bsrbench.study import check_method_settings, max_n_train
 
     methods = config["methods"]
-    for m in config["run"]:
-        if m not in methods:
-            raise ValueError(
-                f"config key 'run': unknown method {m!r}; defined under 'methods': {sorted(methods)}"
-            )
+    # every method run must be buildable: its estimator imports and takes every configured parameter
+    check_method_settings(methods, config["run"])
     for key in ("trace_method",):
         m = config["report"].get(key)
         if m is not None and m not in methods:
@@ -187,6 +186,19 @@ def largest_run_n(protocol, source, activity):
     return max(ok) if ok else None
 
 
+def study_design():
+    """The configured study (protocols, [source, activity] pairs, methods, sizes, seeds): the report rules check
+    that the aggregate table holds exactly these jobs (bsrbench.reporting.tables.check_design)."""
+    return {
+        "protocols": list(config["protocols"]),
+        "pairs": [[s, a] for s, a in study_pairs()],
+        "methods": run_methods(),
+        "n_train": [int(n) for n in config["n_train"]],
+        "seeds": seeds(),
+        "skipped": [[p, s, a, int(n)] for p, s, a, n in sorted(SKIPPED_CELLS)],
+    }
+
+
 def fit_targets(ext="json"):
     return [
         f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
@@ -261,7 +273,7 @@ def table_targets():
 def figure_targets(ext):
     out = [f"reports/figures/error_vs_ntrain_{s}.{ext}" for s in report_sources()]
     out += [f"reports/figures/subjective_{s}.{ext}" for s in report_sources()]
-    out.append(f"reports/figures/calibration.{ext}")
+    out += [f"reports/figures/calibration_{s}.{ext}" for s in report_sources()]
     return out
 
 
@@ -275,10 +287,23 @@ def why_pm_figures(ext):
     return out
 
 
+def subjective_methods():
+    """The methods drawn in the subjective comparison: those of report.subjective_methods that are run."""
+    return [m for m in config["report"]["subjective_methods"] if m in run_methods()]
+
+
+def drawn_as_sticks(source):
+    """True if the subjective figure of ``source`` shows stick figures (every studied activity is a BVH motion)."""
+    acts = config["study_activities"].get(source) or []
+    return bool(acts) and all(
+        is_motion(source, a) and all(str(f).endswith(".bvh") for f in dataset(source, a)["files"]) for a in acts
+    )
+
+
 def subjective_inputs(wildcards):
     """Predictions of the largest n_train run for each activity, seed 0, first protocol, of the methods drawn."""
     p = config["protocols"][0]
-    shown = [m for m in config["report"]["subjective_methods"] if m in run_methods()]
+    shown = subjective_methods()
     acts = config["study_activities"][wildcards.source]
     return {
         "poses": [
@@ -336,7 +361,12 @@ def activity_labels(source):
 
 
 def data_status(source):
-    """{paper activity: the studied activity id, or why there is no row and how to get the data}."""
+    """{paper activity: the studied activity id, or why there is no row: {"kind", "activity", "command", "missing"}}.
+
+    kind "none": no data set of ``source`` for it; "here": data here, activity not studied; "download": data
+    not here, ``command`` downloads (by the download rules) and builds them; "missing": input files missing.
+    The report explains them once per source, under the tables.
+    """
     studied = {a: pa for a, pa in activity_labels(source).items() if pa}
     out = {}
     for row in data_availability():
@@ -347,16 +377,14 @@ def data_status(source):
             continue
         if a is not None and a in studied:
             out[pa] = a
-        elif a is None:
-            out[pa] = f"no {source} data set for this activity (config/datasets.yaml)"
-        elif row["available"]:
-            out[pa] = (
-                f"data here but not in this study: add {a} to study_activities.{source}"
-            )
-        elif row["command"]:
-            out[pa] = f"data not on this machine; get it with: {row['command']}"
-        else:
-            out[pa] = f"data not on this machine (missing {', '.join(row['missing'])})"
+            continue
+        kind = "none" if a is None else "here" if row["available"] else "download" if row["command"] else "missing"
+        out[pa] = {
+            "kind": kind,
+            "activity": a or "",
+            "command": f"snakemake --cores 2 {row['target']}" if kind == "download" else "",
+            "missing": list(row["missing"]),
+        }
     return out
 
 
@@ -369,3 +397,19 @@ def study_targets():
         "reports/tables/why_pm.tex",
         "reports/report.pdf",
     ]
+
+
+def _check_report_is_current():
+    """`snakemake --report` embeds the outputs as they are on disk, without checking that they are current, and
+    Snakefiles get no flag saying that a report is being built: so, on that command line, refuse an aggregate
+    table of another configuration (the one check that matters: the HTML report would show another study)."""
+    if not any(a == "--report" or a.startswith("--report=") for a in sys.argv):
+        return
+    aggregate = Path("results/aggregate/results.csv")
+    if aggregate.exists():
+        from bsrbench.reporting.tables import read_results
+
+        read_results(aggregate, design=study_design())
+
+
+_check_report_is_current()

@@ -9,11 +9,13 @@ rule table:
         report(
             "reports/tables/table{table}_{source}.tex",
             category="Tables",
+            subcategory="{source}",
             caption="../report/tables.rst",
         ),
     log:
         "logs/report/table{table}_{source}.log",
     params:
+        design=study_design(),
         methods=run_methods(),
         labels=method_labels(),
         n_train=config["n_train"],
@@ -38,9 +40,13 @@ rule report_text:
     log:
         "logs/report/report_text.log",
     params:
+        design=study_design(),
         labels=method_labels(),
         tables=table_targets(),
         figures=figure_targets("pdf"),
+        status={s: data_status(s) for s in report_sources()},
+        stick_sources=[s for s in report_sources() if drawn_as_sticks(s)],
+        subjective_first=next(iter(subjective_methods()), ""),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
@@ -57,11 +63,14 @@ rule plot_error_vs_ntrain:
         png=report(
             "reports/figures/error_vs_ntrain_{source}.png",
             category="Figures",
+            subcategory="{source}",
             caption="../report/error_vs_ntrain.rst",
         ),
     log:
         "logs/report/error_vs_ntrain_{source}.log",
     params:
+        design=study_design(),
+        n_train=config["n_train"],
         methods=run_methods(),
         labels=method_labels(),
     threads: 1
@@ -75,15 +84,17 @@ rule plot_calibration:
     input:
         results="results/aggregate/results.csv",
     output:
-        pdf="reports/figures/calibration.pdf",
+        pdf="reports/figures/calibration_{source}.pdf",
         png=report(
-            "reports/figures/calibration.png",
+            "reports/figures/calibration_{source}.png",
             category="Figures",
+            subcategory="{source}",
             caption="../report/calibration.rst",
         ),
     log:
-        "logs/report/calibration.log",
+        "logs/report/calibration_{source}.log",
     params:
+        design=study_design(),
         methods=run_methods(),
         labels=method_labels(),
     threads: 1
@@ -167,19 +178,20 @@ rule report_why_pm:
 rule plot_subjective:
     input:
         unpack(subjective_inputs),
+        results="results/aggregate/results.csv",
     output:
         pdf="reports/figures/subjective_{source}.pdf",
         png=report(
             "reports/figures/subjective_{source}.png",
             category="Figures",
+            subcategory="{source}",
             caption="../report/subjective.rst",
         ),
     log:
         "logs/report/subjective_{source}.log",
     params:
-        methods=lambda w: [
-            m for m in config["report"]["subjective_methods"] if m in run_methods()
-        ],
+        design=study_design(),
+        methods=subjective_methods(),
         activities=lambda w: config["study_activities"][w.source],
         labels_activity=lambda w: {
             a: pa or a.replace("_", " ").capitalize()
@@ -206,6 +218,15 @@ rule report_pdf:
         report("reports/report.pdf", category="Report", caption="../report/report.rst"),
     log:
         "logs/report/report_pdf.log",
+    params:
+        # named on page 1 of the report (with the date, the git commit and the machine), in the order they apply
+        configfiles=[
+            os.path.relpath(f)
+            for f in [
+                *[f for f in workflow.configfiles if f not in workflow.overwrite_configfiles],
+                *workflow.overwrite_configfiles,
+            ]
+        ],
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

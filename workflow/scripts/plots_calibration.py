@@ -9,6 +9,9 @@ from bsrbench.reporting.tables import read_results  # noqa: E402
 
 sm = snakemake  # noqa: F821
 fig = plot_calibration(
-    read_results(sm.input.results), methods=list(sm.params.methods), labels=dict(sm.params.labels)
+    read_results(sm.input.results, design=dict(sm.params.design)),
+    methods=list(sm.params.methods),
+    labels=dict(sm.params.labels),
+    source=sm.wildcards.source,
 )
 save(fig, [sm.output.pdf, sm.output.png])

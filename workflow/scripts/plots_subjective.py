@@ -20,9 +20,12 @@ from bsrbench.reporting.plots import (  # noqa: E402
     save,
     subjective_panels,
 )
+from bsrbench.reporting.tables import read_results  # noqa: E402
 from bsrbench.study import load_features  # noqa: E402
 
 sm = snakemake  # noqa: F821
+# the predictions drawn here are those of the configured study: fail on an aggregate of another one
+read_results(sm.input.results, design=dict(sm.params.design))
 methods = list(sm.params.methods)
 activities = list(sm.params.activities)
 labels = dict(sm.params.labels)

@@ -1,36 +1,69 @@
-"""Snakemake adapter of rule report_text: setup and findings text, and the list of tables and figures."""
+"""Snakemake adapter of rule report_text: setup, parameters and findings text, and the tables and figures."""
 
 import sys
 from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
-from bsrbench.reporting.report import write_body, write_generated  # noqa: E402
+from bsrbench.reporting.report import missing_data_note, write_body, write_generated  # noqa: E402
 from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E402
+from bsrbench.study import estimator_defaults  # noqa: E402
 
 sm = snakemake  # noqa: F821
-CAPTIONS = {
-    "error_vs_ntrain": "Error against training-set size, mean $\\pm$ std over seeds; open markers: the paper.",
-    "subjective": "Subjective comparison (the paper's Fig.~2 idea), one test frame per activity (largest $N$, "
-    "seed 0). Motion-capture data: the rendered silhouette and 3-D stick figures of the true and predicted poses "
-    "(forward kinematics of the trial's skeleton). Precomputed features (hsc): they come with joint angles only, "
-    "in an undocumented skeleton convention, so the input histogram and angle profiles are drawn instead.",
-    "calibration": "Calibration: empirical against nominal coverage of the central predictive intervals.",
-}
-write_generated(
-    sm.output.findings,
-    read_results(sm.input.results),
-    read_paper_tables(sm.input.paper),
-    labels=dict(sm.params.labels),
-)
+labels = dict(sm.params.labels)
+first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
+df = read_results(sm.input.results, design=dict(sm.params.design))
+# the estimators' defaults: the parameter table shows every value a method ran with
+estimators = df.drop_duplicates("method")[["method", "estimator"]].itertuples(index=False)
+defaults = {m: estimator_defaults(e) for m, e in estimators}
+
+
+def caption(kind, source):
+    """The caption of one figure (one per source and kind)."""
+    if kind == "error_vs_ntrain":
+        return (
+            f"Error against the number of training frames $N$ on the {source} data, one panel per activity "
+            "(log-log axes, ticks at the sizes studied): mean $\\pm$ std over seeds, methods dodged sideways so "
+            "that their error bars do not overlap. Filled markers, solid lines: this study; open markers, "
+            "dotted lines: the paper's Tables I and II at the same $N$."
+        )
+    if kind == "subjective" and source in sm.params.stick_sources:
+        return (
+            f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
+            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). From the "
+            "left: the rendered silhouette (the input), the true pose, and each method's predicted pose (in "
+            "colour, over the true pose in grey), as 3-D stick figures from one oblique viewpoint (forward "
+            "kinematics of the trial's skeleton); in brackets the method's error on this frame."
+        )
+    if kind == "subjective":
+        return (
+            f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed 0; "
+            f"the test frame with the median error of {first}). These precomputed features come with joint "
+            "angles only, in a skeleton convention that is not documented, so no stick figure can be drawn: "
+            "left the input shape-context histogram, right the 57 true and predicted joint angles; in brackets "
+            "each method's error on this frame."
+        )
+    if kind == "calibration":
+        return (
+            f"Calibration on the {source} data (random protocol), one panel per $N$: the share of the test angles "
+            "inside the central predictive interval against the interval's nominal level, for the methods "
+            "with predictive intervals; line: mean over seeds, band: minimum to maximum. A calibrated method "
+            "follows the dashed diagonal."
+        )
+    raise ValueError(f"no caption for figure kind {kind!r}")
+
+
+write_generated(sm.output.findings, df, read_paper_tables(sm.input.paper), labels=labels, defaults=defaults)
+KINDS = ("error_vs_ntrain", "subjective", "calibration")
 figures = []
 for f in sm.params.figures:
     stem = Path(f).stem
-    key = next(k for k in CAPTIONS if stem.startswith(k))
-    src = stem[len(key) + 1 :]
-    figures.append((Path(f).relative_to("reports"), CAPTIONS[key] + (f" Data: {src}." if src else "")))
+    kind = next(k for k in KINDS if stem.startswith(k))
+    figures.append((Path(f).relative_to("reports"), caption(kind, stem[len(kind) + 1 :])))
+status = dict(sm.params.status)
 write_body(
     sm.output.body,
     tables=[Path(t).relative_to("reports") for t in sm.params.tables],
     figures=figures,
+    notes={s: missing_data_note(s, dict(st)) for s, st in status.items()},
 )

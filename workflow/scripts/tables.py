@@ -14,7 +14,7 @@ from bsrbench.reporting.tables import (  # noqa: E402
 
 sm = snakemake  # noqa: F821
 text = latex_table(
-    summarize(read_results(sm.input.results)),
+    summarize(read_results(sm.input.results, design=dict(sm.params.design))),
     read_paper_tables(sm.input.paper),
     source=sm.wildcards.source,
     table=sm.wildcards.table,

@@ -1,11 +1,16 @@
 """Figures of the study report (matplotlib, Agg backend, no TeX).
 
-* :func:`plot_error_vs_ntrain`: error against training-set size per activity, every method with error bars
-  (std over seeds), the paper's values as open markers.
-* :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals.
-* :func:`plot_subjective`: the paper's Fig. 2 idea (input, true pose, predictions of several methods) for
-  one test frame per activity. Poses are drawn as angle profiles (the 57 joint angles), because the
-  precomputed features come with joint angles only, whose convention (Poser skeleton) is not documented.
+Every figure is drawn at the size it is printed (at most :data:`TEXT_WIDTH` inches wide; the report includes
+it unscaled), so the font sizes below are printed sizes, none under :data:`MIN_FONT_PT`.
+
+* :func:`plot_error_vs_ntrain`: error against training-set size per activity of one source, every method
+  with error bars (std over seeds), the paper's values at the same sizes as open markers.
+* :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals, one
+  figure per source.
+* :func:`plot_subjective_sticks`: the paper's Fig. 2 (silhouette, true pose, predicted poses as 3-D stick
+  figures) for one test frame per activity of a motion-capture source.
+* :func:`plot_subjective`: the same comparison for the precomputed features, which come with joint angles
+  only, in an undocumented (Poser) skeleton convention: the input histogram and the angle profiles.
 """
 
 import math
@@ -19,8 +24,13 @@ import numpy as np  # noqa: E402
 from ..io import atomic_path  # noqa: E402
 from .tables import activity_label, paper_key, summarize  # noqa: E402
 
-plt.rcParams.update({"font.size": 8, "axes.titlesize": 9, "legend.fontsize": 7, "svg.hashsalt": "bsrbench",
-                     "pdf.fonttype": 42})
+#: Figures are drawn at the size they are printed (the report includes them unscaled; at most TEXT_WIDTH
+#: inches wide), so these are the printed font sizes: none below 7 pt.
+MIN_FONT_PT = 7
+TEXT_WIDTH = 6.9  # inches: A4 with the report's 1.6 cm margins leaves 7.0 in
+plt.rcParams.update({"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7,
+                     "ytick.labelsize": 7, "legend.fontsize": 7, "legend.title_fontsize": 7,
+                     "figure.titlesize": 9, "svg.hashsalt": "bsrbench", "pdf.fonttype": 42})
 _MARKERS = "osD^v<>ph*"
 
 
@@ -29,7 +39,8 @@ def save(fig, paths):
     for path in paths:
         with atomic_path(path) as tmp:
             kw = {"metadata": {"CreationDate": None}} if str(path).endswith(".pdf") else {"metadata": {"Software": None}}
-            fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=150, bbox_inches="tight", **kw)
+            fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=150, bbox_inches="tight", pad_inches=0.02,
+                        **kw)
     plt.close(fig)
 
 
@@ -37,59 +48,110 @@ def _grid(n):
     cols = min(3, n)
     rows = math.ceil(n / cols)
     # at least two panels wide, so that a one-panel figure is not blown up to the text width
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * max(cols, 2), 2.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(min(TEXT_WIDTH, 3.2 * max(cols, 2)), 2.6 * rows), squeeze=False)
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat)
 
 
-def plot_error_vs_ntrain(df, paper, *, source, methods, labels):
-    """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``."""
+def _size_axis(ax, sizes):
+    """Log-scaled x axis with ticks at exactly the studied training sizes."""
+    ax.set_xscale("log")
+    ax.set_xticks(sizes)
+    ax.set_xticklabels([str(n) for n in sizes])
+    ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    ax.set_xlim(min(sizes) / 1.25, max(sizes) * 1.25)
+
+
+def _minor_log_label(v, _pos=None):
+    """Labels of the minor ticks of a log axis: only 2, 3 and 5 times a power of ten (the others stay bare)."""
+    lead = v / 10 ** math.floor(math.log10(v)) if v > 0 else 0
+    return f"{v:g}" if round(lead, 6) in (2.0, 3.0, 5.0) else ""
+
+
+def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
+    """A figure of ``n`` panels (at most ``max_cols`` a row) that fits TEXT_WIDTH with a legend at the right."""
+    cols = min(max_cols, max(1, n))
+    rows = math.ceil(max(1, n) / cols)
+    width = min(TEXT_WIDTH, legend_width + (4.0 if cols == 1 else 2.6 * cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(width, panel_height * rows), squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.remove()
+    return fig, list(axes.flat)[:n]
+
+
+def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
+    """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``.
+
+    Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
+    dodged sideways), the paper's values at the studied sizes as open markers on dotted lines, the
+    contiguous protocol (if run) dashed. The legend is outside the panels.
+    """
+    from matplotlib.lines import Line2D
+
     s = summarize(df[df["source"] == source])
     acts = list(dict.fromkeys(df.loc[df["source"] == source, "activity"]))
-    fig, axes = _grid(max(1, len(acts)))
+    sizes = sorted(int(n) for n in (n_train if n_train is not None else df["n_train"].unique()))
+    fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    protocols = [p for p in ("random", "contiguous") if p in set(s["protocol"])]
+    shown_paper = False
     for ax, act in zip(axes, acts):
         pa = s.loc[s["activity"] == act, "paper_activity"].iloc[0]
         for i, m in enumerate(methods):
-            c = colors[i % len(colors)]
+            c, mk = colors[i % len(colors)], _MARKERS[i % len(_MARKERS)]
+            dodge = 1.0 + 0.018 * (i - (len(methods) - 1) / 2)
             for protocol, ls in (("random", "-"), ("contiguous", "--")):
                 d = s[(s["activity"] == act) & (s["method"] == m) & (s["protocol"] == protocol)].sort_values("n_train")
                 if d.empty:
                     continue
-                lab = labels.get(m, m) if protocol == "random" else f"{labels.get(m, m)} (contig.)"
-                ax.errorbar(d["n_train"], d["mean"], yerr=d["std"].fillna(0), color=c, ls=ls, marker=_MARKERS[i % 10],
-                            ms=3, capsize=2, lw=1, label=lab)
-            pp = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == labels.get(m, m))].sort_values("n_train")
+                ax.errorbar(d["n_train"] * dodge, d["mean"], yerr=d["std"].fillna(0), color=c, ls=ls, marker=mk,
+                            ms=3.5, capsize=1.5, lw=1)
+            pp = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == labels.get(m, m))
+                       & paper["n_train"].isin(sizes)].sort_values("n_train")
             if not pp.empty:
-                ax.plot(pp["n_train"], pp["mean_deg"], ls=":", lw=0.8, color=c, marker=_MARKERS[i % 10], mfc="none",
-                        ms=5, label=f"{labels.get(m, m)} (paper)")
+                shown_paper = True
+                ax.plot(pp["n_train"] * dodge, pp["mean_deg"], ls=":", lw=0.9, color=c, marker=mk, mfc="white",
+                        ms=4.5)
         ax.set_title(activity_label(act, pa))
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+        ax.autoscale_view()
+        lo, hi = ax.get_ylim()
+        # less than a decade shown: label every minor tick, else only 2, 3 and 5 times a power of ten
+        every = hi / lo < 10
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            (lambda v, _pos=None: f"{v:g}") if every else _minor_log_label))
+        _size_axis(ax, sizes)
         ax.set_xlabel("training frames N")
-        ax.set_ylabel("mean angle error (deg)")
-        ax.grid(alpha=0.3)
-    handles, names = [], []
-    for ax in axes:
-        for h, n in zip(*ax.get_legend_handles_labels()):
-            if n not in names:
-                handles.append(h)
-                names.append(n)
-    nrows = math.ceil(len(names) / 4)
-    height = fig.get_size_inches()[1]
-    fig.set_size_inches(fig.get_size_inches()[0], height + 0.18 * nrows + 0.3)
-    bottom = (0.18 * nrows + 0.3) / (height + 0.18 * nrows + 0.3)
-    fig.legend(handles, names, loc="lower center", ncol=4, frameon=False)
-    fig.suptitle(f"Error against training-set size ({source}); open markers, dotted: the paper")
-    fig.tight_layout(rect=(0, bottom, 1, 0.97))
+        ax.set_ylabel("mean angle error (degrees)")
+        ax.grid(alpha=0.3, which="both")
+    handles = [
+        Line2D([], [], color=colors[i % len(colors)], marker=_MARKERS[i % len(_MARKERS)], ms=3.5, lw=1,
+               label=labels.get(m, m))
+        for i, m in enumerate(methods)
+    ]
+    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, label="this study (random)")]
+    if "contiguous" in protocols:
+        style.append(Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls="--", label="this study (contiguous)"))
+    if shown_paper:
+        style.append(Line2D([], [], color="0.3", marker="o", mfc="white", ms=4.5, lw=0.9, ls=":", label="the paper"))
+    fig.legend(handles=handles + style, loc="outside right upper", frameon=False)
     return fig
 
 
-def plot_calibration(df, *, methods, labels):
-    """Empirical coverage of the central predictive intervals against the nominal level, per method and N."""
+def plot_calibration(df, *, methods, labels, source=None):
+    """Empirical coverage of the central predictive intervals against the nominal level, one panel per N.
+
+    Only jobs of ``source`` (all if None) under the random protocol; line: mean over seeds, band: min-max.
+    """
+    if source is not None:
+        df = df[df["source"] == source]
     cols = sorted((c for c in df.columns if c.startswith("coverage_")), key=lambda c: int(c.split("_")[1]))
     levels = np.array([int(c.split("_")[1]) / 100 for c in cols])
     sizes = sorted(df["n_train"].unique())
-    fig, axes = _grid(max(1, len(sizes)))
+    fig, axes = _panels(max(1, len(sizes)), panel_height=2.2)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     any_line = False
     for ax, n in zip(axes, sizes):
         ax.plot([0, 1], [0, 1], color="0.5", lw=0.8, ls="--", label="ideal")
@@ -99,8 +161,9 @@ def plot_calibration(df, *, methods, labels):
                 continue
             mean = d[cols].mean().to_numpy(float)
             lo, hi = d[cols].min().to_numpy(float), d[cols].max().to_numpy(float)
-            ax.plot(levels, mean, marker=_MARKERS[i % 10], ms=3, lw=1, label=labels.get(m, m))
-            ax.fill_between(levels, lo, hi, alpha=0.15)
+            c = colors[i % len(colors)]
+            ax.plot(levels, mean, marker=_MARKERS[i % len(_MARKERS)], ms=3, lw=1, color=c, label=labels.get(m, m))
+            ax.fill_between(levels, lo, hi, alpha=0.15, color=c)
             any_line = True
         ax.set_title(f"N = {n}")
         ax.set_xlabel("nominal coverage")
@@ -108,11 +171,16 @@ def plot_calibration(df, *, methods, labels):
         ax.set_xlim(0.4, 1)
         ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left")
-    if not any_line:
-        axes[0].text(0.7, 0.5, "no method with predictive intervals was run", ha="center", fontsize=7)
-    fig.suptitle("Calibration of the central predictive intervals (random protocol; band: min-max over jobs)", y=1.02)
-    fig.tight_layout()
+    if any_line:
+        handles, names = [], []
+        for ax in axes:
+            for h, nm in zip(*ax.get_legend_handles_labels()):
+                if nm not in names:
+                    handles.append(h)
+                    names.append(nm)
+        fig.legend(handles, names, loc="outside right upper", frameon=False)
+    else:
+        axes[0].text(0.7, 0.5, "no method with predictive\nintervals was run", ha="center", fontsize=MIN_FONT_PT)
     return fig
 
 
@@ -121,24 +189,26 @@ def plot_subjective(panels, *, labels):
 
     ``panels``: list of dicts with keys ``activity``, ``label``, ``x`` (feature vector), ``y_true`` (angles),
     ``preds`` ({method: predicted angles}), ``frame`` (frame index), ``errors`` ({method: error on this frame}).
+    Row titles and method labels are those of :func:`plot_subjective_sticks`.
     """
     n = max(1, len(panels))
-    fig, axes = plt.subplots(n, 2, figsize=(9, 2.2 * n), squeeze=False, gridspec_kw={"width_ratios": [1, 3]})
+    fig, axes = plt.subplots(n, 2, figsize=(TEXT_WIDTH, 2.4 * n), squeeze=False, layout="constrained",
+                             gridspec_kw={"width_ratios": [1, 2.6]})
     for (axx, axy), pnl in zip(axes, panels):
         axx.bar(np.arange(pnl["x"].size), pnl["x"], width=1.0, color="0.3")
-        axx.set_title(f"{pnl['label']}: input, frame {pnl['frame']}", fontsize=7)
-        axx.set_xlabel("shape-context bin")
+        axx.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram", loc="left")
+        axx.set_xlabel("shape-context histogram bin")
+        axx.set_ylabel("weight")
         idx = np.arange(pnl["y_true"].size)
         axy.plot(idx, pnl["y_true"], color="k", lw=1.5, marker="o", ms=2.5, label="true pose")
         for i, (m, y) in enumerate(pnl["preds"].items()):
-            axy.plot(idx, y, lw=0.9, marker=_MARKERS[i % 10], ms=2.5, mfc="none",
+            axy.plot(idx, y, lw=0.9, color=f"C{i}", marker=_MARKERS[i % 10], ms=3, mfc="none",
                      label=f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)")
+        axy.set_title("the true pose and the predicted poses\n(57 joint angles; error on this frame)", loc="left")
         axy.set_xlabel("joint angle index")
         axy.set_ylabel("degrees")
-        axy.legend(ncol=4, loc="upper right", fontsize=6)
+        axy.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
         axy.grid(alpha=0.3)
-    fig.suptitle("Subjective comparison (one test frame per activity: median PM error); angle profiles", y=1.01)
-    fig.tight_layout()
     return fig
 
 
@@ -197,44 +267,66 @@ def pose_positions(bvh, trial_frame, pose_joints, angles):
     return pos - pos[0]
 
 
-def _stick(ax, pos, parents, color):
+def oblique_projection(pos, *, elev=12.0, azim=35.0):
+    """Screen coordinates (J, 2) of joint positions (J, 3; y up) seen from an oblique viewpoint.
+
+    The body is turned by ``azim`` degrees about the vertical axis, then seen from ``elev`` degrees above
+    the horizontal (orthographic projection): screen x is the turned x, screen y the height tilted
+    towards the viewer.
+    """
+    pos = np.asarray(pos, dtype=float)
+    a, e = np.deg2rad(azim), np.deg2rad(elev)
+    x = pos[:, 0] * np.cos(a) + pos[:, 2] * np.sin(a)
+    depth = -pos[:, 0] * np.sin(a) + pos[:, 2] * np.cos(a)
+    y = pos[:, 1] * np.cos(e) - depth * np.sin(e)
+    return np.column_stack([x, y])
+
+
+def _stick(ax, xy, parents, color, lw=1.4):
     for j, p in enumerate(parents):
         if p >= 0:
-            # world y is up: draw (x, z, y) so that the figure stands upright
-            ax.plot([pos[p, 0], pos[j, 0]], [pos[p, 2], pos[j, 2]], [pos[p, 1], pos[j, 1]], color=color, lw=1.2)
+            ax.plot([xy[p, 0], xy[j, 0]], [xy[p, 1], xy[j, 1]], color=color, lw=lw, solid_capstyle="round")
 
 
-def plot_subjective_sticks(panels, *, labels):
-    """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as 3-D stick figures.
+def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
+    """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as stick figures.
 
     ``panels``: dicts with ``label``, ``frame``, ``silhouette`` (H, W bool), ``parents``, ``true`` (J, 3),
-    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}).
+    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}). Every 3-D pose is
+    drawn from the same oblique viewpoint (:func:`oblique_projection`) at the same scale within a row; each
+    prediction is drawn over the true pose in light grey.
     """
     n = max(1, len(panels))
     ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
-    fig = plt.figure(figsize=(1.6 * ncol, 2.8 * n))
-    for r, pnl in enumerate(panels):
-        ax = fig.add_subplot(n, ncol, r * ncol + 1)
-        ax.imshow(pnl["silhouette"], cmap="gray_r", interpolation="nearest")
+    row_h = 2.5
+    fig, axes = plt.subplots(n, ncol, figsize=(TEXT_WIDTH, row_h * n), squeeze=False, layout="constrained")
+    for axrow, pnl in zip(axes, panels):
+        ax = axrow[0]
+        sil = np.asarray(pnl["silhouette"], dtype=bool)
+        rows, cols = np.nonzero(sil)
+        if rows.size:  # crop to the silhouette, with a margin
+            m = max(2, int(0.05 * sil.shape[0]))
+            sil = sil[max(rows.min() - m, 0) : rows.max() + m + 1, max(cols.min() - m, 0) : cols.max() + m + 1]
+        ax.imshow(sil, cmap="gray_r", interpolation="nearest")
         ax.set_axis_off()
-        ax.set_title(f"{pnl['label']}\nsilhouette, frame {pnl['frame']}", fontsize=7)
-        allpos = np.concatenate([pnl["true"]] + list(pnl["preds"].values()))
-        lo, hi = allpos.min(axis=0), allpos.max(axis=0)
-        half = 0.5 * float((hi - lo).max())
-        mid = 0.5 * (hi + lo)
-        figs = [("true pose", pnl["true"], "k")] + [
-            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", pos, f"C{i}") for i, (m, pos) in enumerate(pnl["preds"].items())
+        ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input silhouette")
+        view = {k: oblique_projection(v, elev=elev, azim=azim) for k, v in
+                [("true", pnl["true"])] + list(pnl["preds"].items())}
+        allxy = np.concatenate(list(view.values()))
+        lo, hi = allxy.min(axis=0), allxy.max(axis=0)
+        pad = 0.05 * float((hi - lo).max())
+        figs = [("true pose", "true", "k")] + [
+            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", m, f"C{i}") for i, m in enumerate(pnl["preds"])
         ]
-        for c, (title, pos, color) in enumerate(figs):
-            ax = fig.add_subplot(n, ncol, r * ncol + 2 + c, projection="3d")
-            _stick(ax, pos, pnl["parents"], color)
-            ax.set_xlim(mid[0] - half, mid[0] + half)
-            ax.set_ylim(mid[2] - half, mid[2] + half)
-            ax.set_zlim(mid[1] - half, mid[1] + half)
-            ax.view_init(elev=10, azim=-90)
-            ax.set_box_aspect((1, 1, 1), zoom=1.4)
+        for ax, (title, key, color) in zip(axrow[1:], figs):
+            if key != "true":
+                _stick(ax, view["true"], pnl["parents"], "0.78", lw=1.3)
+            _stick(ax, view[key], pnl["parents"], color, lw=1.8)
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(lo[1] - pad, hi[1] + pad)
+            ax.set_aspect("equal")
             ax.set_axis_off()
-            ax.set_title(title, fontsize=7)
-    fig.suptitle("Subjective comparison (one test frame per activity: median error of the first method)")
-    fig.tight_layout()
+            ax.set_title(title)
+        for ax in axrow[2 + len(pnl["preds"]) :]:
+            ax.set_visible(False)
     return fig

@@ -7,6 +7,7 @@ calibration of the predictive intervals.
 """
 
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -23,24 +24,67 @@ def _pairs(s, protocol, n):
     return d.pivot_table(index=["source", "activity", "paper_activity"], columns="method", values="mean")
 
 
+def nobreak(text):
+    """LaTeX for ``text`` (escaped) that is never hyphenated or broken across lines (activity names)."""
+    return r"\mbox{" + latex_escape(text) + "}"
+
+
 def _names(idx):
-    return ", ".join(f"{latex_escape(activity_label(a, pa))} ({latex_escape(s)})" for s, a, pa in idx) or "none"
+    return ", ".join(nobreak(f"{activity_label(a, pa)} ({s})") for s, a, pa in idx)
+
+
+def _listing(items):
+    """``a``, ``a and b``, ``a, b and c``."""
+    items = list(items)
+    if len(items) <= 1:
+        return "".join(items)
+    return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _each(names):
+    """"X" for one name, "each of X, Y and Z" for several."""
+    names = list(names)
+    return names[0] if len(names) == 1 else "each of " + _listing(names)
+
+
+def _for_how_many(ok):
+    """How many activities a boolean Series (indexed by source, activity, paper activity) is true for, in words,
+    naming them: "for all 2 activities (A, B)", "for none of the 2 activities (A, B)",
+    "for 1 of the 2 activities (A); not for B"."""
+    n, k = len(ok), int(ok.sum())
+    word = "activity" if n == 1 else "activities"
+    if k == n:
+        return f"for {'the' if n == 1 else f'all {n}'} {word} studied ({_names(ok.index)})"
+    if k == 0:
+        return f"for {'the' if n == 1 else f'none of the {n}'} {word} studied ({_names(ok.index)})"
+    return f"for {k} of the {n} {word} studied ({_names(ok.index[ok])}), but not for {_names(ok.index[~ok])}"
+
+
+def _methods(df, labels):
+    """The methods of ``df`` in the order of ``labels`` (the configuration's ``run``), then any others."""
+    have = list(dict.fromkeys(df["method"]))
+    return [m for m in labels if m in have] + [m for m in have if m not in labels]
 
 
 def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
-    """Sentences (LaTeX) saying where the paper's claims hold on these data and where they do not."""
+    """Plain sentences (LaTeX) saying where the paper's claims hold on these data and where they do not.
+
+    Every sentence states what was compared, on which rows, and the count in words; ratios to the paper's
+    errors and coverages are given per data source (their data differ).
+    """
     out = []
     s = summarize(df)
-    methods = list(dict.fromkeys(df["method"]))
+    methods = _methods(df, labels)
     baselines = [m for m in methods if labels.get(m, m) in PAPER_METHODS and m != pm]
     refs = [m for m in references if m in methods]
     L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
     protocols = [p for p in ("random", "contiguous") if p in set(df["protocol"])]
+    sources = list(dict.fromkeys(df["source"]))
     if pm not in methods:
         return [f"{latex_escape(pm)} was not run, so the paper's claims about it are not checked."]
     sizes = sorted(df["n_train"].unique())
     for protocol in protocols:
-        tag = "" if protocol == "random" else " (contiguous protocol)"
+        tag = f"{protocol.capitalize()} protocol"
         t = s[s["protocol"] == protocol].pivot_table(
             index=["source", "activity", "n_train"], columns="method", values="mean"
         )
@@ -49,13 +93,17 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             have = t.dropna(subset=[pm] + bl)
             ok = have[pm] < have[bl].min(axis=1)
             text = (
-                f"Summary{tag}: the paper's Tables I--II show PM with the lowest error in every row; here PM is "
-                f"lowest among the paper's methods in {int(ok.sum())} of {len(ok)} (activity, $N$) rows"
+                f"{tag}, summary: in the paper's Tables I and II, PM has the lowest error in every row. Here PM has "
+                f"a lower mean error than {_each(L(b) for b in baselines)} in {int(ok.sum())} of the {len(ok)} "
+                f"(activity, $N$) rows"
             )
             allm = [m for m in bl + refs if m in t.columns]
             if refs:
                 ok2 = have[pm] < have[allm].min(axis=1)
-                text += f", and lowest of all methods including the references in {int(ok2.sum())} of {len(ok2)}"
+                text += (
+                    f", and a lower mean error than every other method run (the references "
+                    f"{_listing([L(r) for r in refs])} included) in {int(ok2.sum())} of the {len(ok2)} rows"
+                )
             out.append(text + ".")
     for protocol in protocols:
         tag = "" if protocol == "random" else " (contiguous protocol)"
@@ -63,15 +111,13 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             t = _pairs(s, protocol, n)
             if pm not in t.columns:
                 continue
-            if baselines:
-                have = t.dropna(subset=[pm] + [b for b in baselines if b in t.columns])
-                bl = [b for b in baselines if b in t.columns]
+            bl = [b for b in baselines if b in t.columns]
+            if bl:
+                have = t.dropna(subset=[pm] + bl)
                 ok = have[pm] < have[bl].min(axis=1)
-                verdict = "holds" if ok.all() else ("does not hold" if not ok.any() else "holds only partly")
                 out.append(
-                    f"``PM beats every baseline ({', '.join(L(b) for b in bl)}) at $N={n}$''{tag}: {verdict}, "
-                    f"for {int(ok.sum())} of {len(ok)} activities"
-                    + (f" (fails for {_names(ok.index[~ok])})." if (~ok).any() else ".")
+                    f"At $N={n}${tag}, PM has a lower mean error than {_each(L(b) for b in bl)} "
+                    f"{_for_how_many(ok)}."
                 )
             for r in refs:
                 if r not in t.columns:
@@ -79,9 +125,11 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
                 have = t.dropna(subset=[pm, r])
                 ok = have[pm] < have[r]
                 diff = float(np.median(have[pm] - have[r])) if len(have) else float("nan")
+                side = "PM's error is higher" if diff > 0 else "PM's error is lower"
+                over = ", median over these activities," if len(have) > 1 else ""
                 out.append(
-                    f"PM vs {L(r)} at $N={n}${tag}: PM is lower for {int(ok.sum())} of {len(ok)} activities "
-                    f"(median difference PM $-$ {L(r)} = {diff:+.2f} degrees)."
+                    f"At $N={n}${tag}, PM has a lower mean error than {L(r)} {_for_how_many(ok)}; "
+                    f"PM's mean error minus {L(r)}'s{over} is {diff:+.2f} degrees ({side})."
                 )
     # paired per split: the same split for every method, so compare seed by seed
     r = df[df["protocol"] == "random"]
@@ -92,109 +140,332 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             w = w.dropna(subset=[pm] + bl)
             wins = int((w[pm] < w[bl].min(axis=1)).sum())
             out.append(
-                f"Split by split (every method sees the same split): PM has the lowest error of PM and the "
-                f"baselines on {wins} of {len(w)} random splits."
+                f"Split by split (every method sees the same random split), PM has a lower error than "
+                f"{_each(L(b) for b in bl)} on {wins} of the {len(w)} splits."
             )
-    # ours vs the paper
+    # ours vs the paper, per source (the sources' features differ, and so do their ratios)
     if paper is not None and not r.empty:
         sr = s[s["protocol"] == "random"].copy()
         sr["label"] = sr["method"].map(lambda m: labels.get(m, m))
         m = sr.merge(paper, left_on=["key", "n_train", "label"], right_on=["key", "n_train", "method"],
                      suffixes=("", "_paper"))
-        if not m.empty:
-            parts = []
-            for lab, g in m.groupby("label", sort=False):
-                ratio = float(np.median(g["mean"] / g["mean_deg"]))
-                parts.append(f"{latex_escape(lab)} {ratio:.2f}")
+        per_source = []
+        order = [labels.get(mm, mm) for mm in methods]
+        for src in sources:
+            g_src = m[m["source"] == src]
+            if g_src.empty:
+                continue
+            groups = dict(list(g_src.groupby("label", sort=False)))
+            parts = [
+                f"{latex_escape(lab)} {float(np.median(g['mean'] / g['mean_deg'])):.2f}"
+                for lab, g in sorted(groups.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else 99)
+            ]
+            per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
+        if per_source:
             out.append(
-                "Our error divided by the paper's, median over the matching (activity, $N$) cells: "
-                + ", ".join(parts) + " (1 = same error; the paper's data are not identical to ours)."
+                "Our mean error divided by the paper's for the same method, activity and $N$ (median over the "
+                "matching cells; below 1: a lower error here than in the paper): "
+                + "; ".join(per_source)
+                + ". The paper's features are not the ones used here, so these ratios compare data sets as much "
+                "as implementations."
             )
     # protocol effect
     if set(protocols) == {"random", "contiguous"}:
         w = s.pivot_table(index=["source", "activity", "method", "n_train"], columns="protocol", values="mean").dropna()
-        if not w.empty:
+        per_source = []
+        for src in sources:
+            if src not in w.index.get_level_values("source"):
+                continue
+            ws = w.xs(src, level="source")
             parts = [
                 f"{L(mm)} {float(np.median(g['contiguous'] / g['random'])):.2f}"
-                for mm, g in w.groupby(level="method", sort=False)
+                for mm, g in ws.groupby(level="method", sort=False)
             ]
+            per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
+        if per_source:
             out.append(
-                "Contiguous against random frames (error ratio, median over activities and $N$): "
-                + ", ".join(parts)
+                "Mean error under the contiguous protocol divided by that under the random protocol (median "
+                "over activities and $N$; above 1: the contiguous protocol is harder): " + "; ".join(per_source)
                 + ". Random frames of one sequence put near-duplicates of test frames in the training set."
             )
     # calibration
     if "coverage_90" in df.columns:
         c = r.dropna(subset=["coverage_90"])
-        if not c.empty:
-            parts = [f"{L(mm)} {100 * float(g['coverage_90'].mean()):.0f}\\%" for mm, g in c.groupby("method", sort=False)]
-            out.append("Coverage of the nominal 90\\% predictive interval (mean over random splits): " + ", ".join(parts) + ".")
+        per_source = []
+        for src in sources:
+            cs = c[c["source"] == src]
+            if cs.empty:
+                continue
+            parts = [
+                f"{L(mm)} {100 * float(cs.loc[cs['method'] == mm, 'coverage_90'].mean()):.0f}\\%"
+                for mm in methods
+                if mm in set(cs["method"])
+            ]
+            per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
+        if per_source:
+            out.append(
+                "Share of the test angles inside the central 90\\% predictive interval (mean over random splits; "
+                "90\\% for a calibrated method): " + "; ".join(per_source) + "."
+            )
     return out
 
 
+def _fmt_value(v):
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
+
+
+def parameters_used(df, *, defaults, labels=None):
+    """Per method, the parameters its fits actually used: ``{method: (set, default)}``.
+
+    ``set``: ``{name: [values]}`` of the parameters given by the configuration or chosen by CV (the aggregate
+    table's ``params``, one list entry per distinct value over jobs); ``default``: ``{name: value}`` of the
+    estimator's other constructor parameters (``defaults[method]``, e.g. from
+    :func:`bsrbench.study.estimator_defaults`), i.e. the values it ran with. ``random_state`` is set per job.
+    """
+    out = {}
+    for m in _methods(df, labels or {}):
+        seen = {}
+        for text in df.loc[df["method"] == m, "params"].astype(str):
+            try:
+                params = json.loads(text) if text not in ("", "nan") else {}
+            except json.JSONDecodeError:
+                params = {}
+            for k, v in params.items():
+                vals = seen.setdefault(k, [])
+                if v not in vals:
+                    vals.append(v)
+        for k in seen:
+            try:
+                seen[k] = sorted(seen[k])
+            except TypeError:
+                pass
+        default = {k: v for k, v in (defaults.get(m) or {}).items() if k not in seen}
+        if "random_state" in default:
+            default["random_state"] = "per job"
+        out[m] = (seen, default)
+    return out
+
+
+def parameters_table(df, *, labels, defaults):
+    """LaTeX table: per method, the estimator, the parameters set by the configuration or CV, and the estimator
+    defaults it ran with (see :func:`parameters_used`)."""
+    used = parameters_used(df, defaults=defaults, labels=labels)
+    est = {}
+    if "estimator" in df.columns:
+        est = df.drop_duplicates("method").set_index("method")["estimator"].to_dict()
+
+    def cell(pairs):
+        items = [latex_escape(f"{k}={v}").replace("-", "-{}") for k, v in pairs]
+        return ", ".join(items) if items else r"\textrm{none}"
+
+    rows = []
+    for m, (seen, default) in used.items():
+        set_pairs = [(k, "|".join(_fmt_value(x) for x in vals) + (" (CV)" if len(vals) > 1 else ""))
+                     for k, vals in seen.items()]
+        dflt_pairs = [(k, _fmt_value(v)) for k, v in default.items()]
+        name = latex_escape(labels.get(m, m))
+        cls = latex_escape(str(est.get(m, "")).split(":")[-1])
+        rows.append(rf"{name} & \texttt{{{cls}}} & {cell(set_pairs)} & {cell(dflt_pairs)} \\")
+    return "\n".join([
+        r"\begin{table}[H]",
+        r"\centering\footnotesize",
+        r"\caption{Parameters each method ran with: those set by the configuration or chosen by cross-validation "
+        r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
+        r"others.}",
+        r"\label{tab:parameters}",
+        r"\begin{tabularx}{\linewidth}{@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
+        r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}}",
+        r"\toprule",
+        r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\",
+        r"\midrule",
+        *rows,
+        r"\bottomrule",
+        r"\end{tabularx}",
+        r"\end{table}",
+    ])
+
+
 def setup_text(df, *, labels):
-    """A paragraph describing what was run (computed from the aggregate table)."""
+    """Sentences describing what was run (computed from the aggregate table)."""
     sources = {}
     pa_col = df["paper_activity"] if "paper_activity" in df.columns else [""] * len(df)
     d = df.assign(paper_activity=pa_col)[["source", "activity", "paper_activity"]].drop_duplicates()
     for src, act, pa in d.itertuples(index=False):
-        sources.setdefault(src, []).append(f"{activity_label(act, pa)} ({act})")
+        sources.setdefault(src, []).append(nobreak(activity_label(act, pa)))
     seeds = sorted(df["seed"].unique())
     sizes = sorted(df["n_train"].unique())
     cv = sorted(df["cv"].dropna().unique()) if "cv" in df.columns else []
-    lines = [
-        "Data: " + "; ".join(f"{latex_escape(s)}: {latex_escape(', '.join(a))}" for s, a in sources.items()) + ".",
-        f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} splits (seeds) per size, "
-        f"protocols: {latex_escape(', '.join(sorted(df['protocol'].unique())))}; "
+    methods = [latex_escape(labels.get(m, m)) for m in _methods(df, labels)]
+    how = {
+        "per_size": "chosen by cross-validation once per activity, method and $N$, on the training frames of "
+        "seed 0, and used for every seed",
+        "per_job": "chosen by cross-validation on the training frames of each split",
+        "none": "as configured (no cross-validation)",
+    }
+    return [
+        "Data: " + "; ".join(f"{latex_escape(s)}: {', '.join(a)}" for s, a in sources.items()) + ".",
+        f"Methods: {', '.join(methods)}.",
+        f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} splits (seeds) per size; "
+        f"protocol: {latex_escape(', '.join(sorted(df['protocol'].unique())))}; "
         f"pose transform: {latex_escape(', '.join(sorted(df['pose_transform'].unique())))}.",
-        "Hyper-parameters: " + latex_escape(", ".join(cv) or "n/a") + " (per\\_size: one 5-fold CV per activity, "
-        "method and $N$ on the training frames of seed 0, used for every seed; per\\_job: one CV per split; "
-        "none: fixed parameters).",
+        "Hyper-parameters: " + "; ".join(how.get(c, latex_escape(c)) for c in cv or ["none"])
+        + " (configuration key \\texttt{cv.mode}: " + latex_escape(", ".join(cv) or "none") + "). "
+        "Table~\\ref{tab:parameters} lists the parameters each method ran with.",
     ]
-    params = []
-    for m in dict.fromkeys(df["method"]):
-        ps = sorted(set(df.loc[df["method"] == m, "params"].astype(str)))
-        shown = latex_escape("; ".join(ps[:3])) + (f"; \\ldots\\ ({len(ps)} settings)" if len(ps) > 3 else "")
-        params.append(f"{latex_escape(labels.get(m, m))}: \\texttt{{{shown}}}")
-    # One item per method, typeset sloppily: long typewriter runs must break at their spaces, not overflow.
-    lines.append(r"Parameters used:\begin{sloppypar}\begin{itemize}" + " ".join(r"\item " + p for p in params)
-                 + r"\end{itemize}\end{sloppypar}")
-    return lines
 
 
-def write_generated(path, df, paper, *, labels):
-    """The LaTeX fragment with the setup and the findings (input by reports/report.tex)."""
+def write_generated(path, df, paper, *, labels, defaults=None):
+    """The LaTeX fragment with the setup (and parameter table) and the findings (input by reports/report.tex)."""
     body = ["% generated from results/aggregate/results.csv", r"\section{Setup}", ""]
-    body += [" ".join(setup_text(df, labels=labels)), "", r"\section{Findings}", r"\begin{itemize}"]
+    body += [" ".join(setup_text(df, labels=labels)), ""]
+    body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
+    body += [r"\section{Findings}", r"\begin{itemize}"]
     body += [r"\item " + f for f in findings(df, paper, labels=labels)]
     body += [r"\end{itemize}", ""]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(body))
 
 
-def write_body(path, *, tables, figures):
-    """The fragment listing the tables and figures (paths relative to reports/)."""
+def tt(text):
+    """``text`` in typewriter type, exactly as typed: "--" stays two ASCII hyphens (no en-dash ligature), so a
+    command copied from the PDF runs."""
+    return r"\texttt{" + latex_escape(text).replace("-", "-{}") + "}"
+
+
+#: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
+NO_ROW = {
+    "none": "no data set of this source",
+    "here": "data here, not in this study",
+    "download": "data not on this machine",
+    "missing": "input files missing",
+}
+
+
+def missing_data_note(source, status):
+    """One short LaTeX paragraph on the paper's activities that have no row for ``source``; "" if none.
+
+    ``status``: {paper activity: studied activity id, or {"kind", "activity", "command", "missing"}} (the
+    workflow's data_status; kinds as in :data:`NO_ROW`). Commands are set in typewriter type, one per line
+    and with ASCII hyphens, so that they can be copied.
+    """
+    from .tables import PAPER_TABLES
+
+    by_kind = {}
+    for names in PAPER_TABLES.values():
+        for pa in names:
+            st = status.get(pa, {"kind": "none"})
+            if isinstance(st, dict):
+                by_kind.setdefault(st.get("kind", "none"), []).append((pa, st))
+    if not by_kind:
+        return ""
+    lines = []
+    for kind, items in by_kind.items():
+        names = _listing([nobreak(pa) for pa, _ in items])
+        if kind == "none":
+            lines.append(f"{names}: config/datasets.yaml has no {latex_escape(source)} data set for "
+                         + ("it." if len(items) == 1 else "them."))
+        elif kind == "here":
+            ids = _listing([tt(st["activity"]) for _, st in items])
+            lines.append(f"{names}: the data are here; add {ids} to the configuration key "
+                         f"{tt('study_activities.' + source)} to study " + ("it." if len(items) == 1 else "them."))
+        elif kind == "download":
+            lines.append(f"{names}: the data are not on this machine; these commands download and build them:")
+            lines += [r"\hspace*{1.5em}" + tt(st["command"]) for _, st in items]
+        else:
+            missing = sorted({f for _, st in items for f in st.get("missing", [])})
+            lines.append(f"{names}: input files missing ({latex_escape(', '.join(missing))}).")
+    return (
+        r"\paragraph{Activities of the paper without data (" + latex_escape(source) + r").}" + "\n"
+        + r"\begin{flushleft}\small" + "\n" + "\\\\\n".join(lines) + "\n" + r"\end{flushleft}"
+    )
+
+
+def write_body(path, *, tables, figures, notes=None):
+    """The fragment with the tables and figures (paths relative to reports/).
+
+    ``tables``: paths of the table fragments (``table<T>_<source>.tex``); after the last table of a source
+    comes ``notes[source]`` (see :func:`missing_data_note`). ``figures``: (path, caption) pairs. Figures are
+    included at their natural size (``\fitgraphics`` of reports/report.tex): they are drawn at the size they
+    are printed, with no font below 7 pt; one wider than the text is scaled down to it.
+    """
+    notes = notes or {}
+    tables = [Path(t) for t in tables]
+    sources = [t.stem.split("_", 1)[1] if "_" in t.stem else "" for t in tables]
     lines = [r"\section{Tables}"]
-    lines += [rf"\input{{{Path(t).with_suffix('').as_posix()}}}" for t in tables]
+    for k, (t, src) in enumerate(zip(tables, sources)):
+        lines.append(rf"\input{{{t.with_suffix('').as_posix()}}}")
+        last = k + 1 == len(tables) or sources[k + 1] != src
+        if last and notes.get(src):
+            lines.append(notes[src])
     lines += [r"\clearpage", r"\section{Figures}"]
     for f, caption in figures:
+        f = Path(f)
         lines += [
             r"\begin{figure}[H]",
             r"\centering",
-            rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{{Path(f).as_posix()}}}",
+            rf"\fitgraphics{{{f.as_posix()}}}",
             rf"\caption{{{caption}}}",
+            rf"\label{{fig:{f.stem}}}",
             r"\end{figure}",
         ]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(lines) + "\n")
 
 
-def build_pdf(tex, pdf, *, log=None):
-    """Run latexmk (pdflatex) on ``tex`` in its folder, output in ``<folder>/build``; copy the PDF to ``pdf``."""
+def build_header(*, configfiles, when=None, root="."):
+    """LaTeX for the page-1 header: build date, git commit (and whether the tree has uncommitted changes),
+    configuration files and machine."""
+    import datetime
+    import os
+    import platform
+
+    when = when or datetime.datetime.now(datetime.timezone.utc)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, capture_output=True,
+                                text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=normal"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+        code = f"git commit {commit}" + (" with uncommitted changes" if dirty else ", no uncommitted changes")
+    except (OSError, subprocess.CalledProcessError):
+        code = "not a git checkout (commit unknown)"
+    cpu = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = " ".join(line.split(":", 1)[1].split())
+                break
+    except OSError:
+        pass
+    machine = f"{platform.node()}: {platform.system()} {platform.machine()}, {os.cpu_count()} logical CPUs"
+    if cpu:
+        machine += f" ({cpu})"
+    machine += f", Python {platform.python_version()}"
+    rows = [
+        ("Built", when.strftime("%Y-%m-%d %H:%M UTC")),
+        ("Code", code),
+        ("Configuration", (", ".join(map(str, configfiles)) + " (in the order they apply)") if configfiles else "none"),
+        ("Machine", machine),
+    ]
+    body = "\n".join(rf"{k} & {latex_escape(v)} \\" for k, v in rows)
+    return (
+        "\\begin{center}\\small\n\\begin{tabularx}{0.9\\linewidth}{@{}l>{\\raggedright\\arraybackslash}X@{}}\n"
+        + body + "\n\\end{tabularx}\n\\end{center}\n"
+    )
+
+
+def build_pdf(tex, pdf, *, log=None, header=None):
+    """Run latexmk (pdflatex) on ``tex`` in its folder, output in ``<folder>/build``; copy the PDF to ``pdf``.
+
+    ``header``: LaTeX written to ``build/header.tex`` first (the template inputs it; see :func:`build_header`).
+    """
     tex = Path(tex).resolve()
     if shutil.which("latexmk") is None:
         raise InputError("latexmk is not installed (bin/setup installs TeX Live); cannot build the PDF")
     build = tex.parent / "build"
+    build.mkdir(exist_ok=True)
+    (build / "header.tex").write_text(header if header is not None else "")
     cmd = ["latexmk", "-pdf", "-interaction=nonstopmode", "-halt-on-error", f"-outdir={build}", tex.name]
     res = subprocess.run(cmd, cwd=tex.parent, capture_output=True, text=True)
     if log is not None:
@@ -203,6 +474,20 @@ def build_pdf(tex, pdf, *, log=None):
         raise RuntimeError(f"latexmk failed on {tex} (exit {res.returncode}); see {build / tex.with_suffix('.log').name}")
     with atomic_path(pdf) as tmp:
         shutil.copyfile(build / tex.with_suffix(".pdf").name, tmp)
+
+
+def latex_log_problems(text, *, max_overfull_pt=1.0):
+    """Problems in a LaTeX log: overfull boxes wider than ``max_overfull_pt``, undefined references and
+    citations, and the request to rerun. Returns a list of the offending log lines (empty if none)."""
+    out = []
+    for line in text.splitlines():
+        m = re.match(r"Overfull \\[hv]box \(([\d.]+)pt too (wide|high)\)", line)
+        if m and float(m.group(1)) > max_overfull_pt:
+            out.append(line)
+        elif re.search(r"LaTeX Warning: (Reference|Citation) .* undefined", line) or \
+                "There were undefined references" in line or "Rerun to get cross-references right" in line:
+            out.append(line)
+    return out
 
 
 def labels_from_json(text):

@@ -84,8 +84,12 @@ def write_csv(df, path):
         df.to_csv(tmp, index=False)
 
 
-def read_results(path):
-    """Read the aggregate table and check its columns."""
+def read_results(path, design=None):
+    """Read the aggregate table and check its columns; with ``design``, check it is exactly that study.
+
+    ``design``: the configured study, ``{"protocols": [...], "pairs": [[source, activity], ...],
+    "methods": [...], "n_train": [...], "seeds": [...]}`` (see :func:`check_design`).
+    """
     try:
         df = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -93,7 +97,60 @@ def read_results(path):
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}")
+    if design is not None:
+        check_design(df, design, path=path)
     return df
+
+
+def check_design(df, design, *, path="results/aggregate/results.csv"):
+    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
+
+    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
+    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``, and optionally ``skipped``:
+    [protocol, source, activity, n_train] cells not run because too few test frames remain). A table of another
+    configuration (say, one written before a method was added) must never be reported as this study's.
+    """
+    skipped = {(p, s, a, int(n)) for p, s, a, n in design.get("skipped", [])}
+    wanted = {
+        (p, s, a, m, int(n), int(k))
+        for p in design["protocols"]
+        for s, a in design["pairs"]
+        for m in design["methods"]
+        for n in design["n_train"]
+        for k in design["seeds"]
+        if (p, s, a, int(n)) not in skipped
+    }
+    have = {
+        (p, s, a, m, int(n), int(k))
+        for p, s, a, m, n, k in df[KEY_COLUMNS].itertuples(index=False, name=None)
+    }
+    if wanted == have:
+        return
+    differ = []
+    for i, col in enumerate(KEY_COLUMNS):
+        got = sorted({r[i] for r in have})
+        conf = design_values(design, col)
+        if got != conf:
+            differ.append(f"{col}: the table has {got}, the configuration {conf}")
+    if not differ:
+        missing = sorted(wanted - have)
+        differ.append(f"e.g. no row for {dict(zip(KEY_COLUMNS, missing[0]))}" if missing else "")
+    raise DataFileError(
+        path,
+        f"does not match the configuration: {len(wanted - have)} configured job(s) without a row, "
+        f"{len(have - wanted)} row(s) of jobs not configured; " + "; ".join(differ)
+        + ". Expected exactly the configured study; rebuild it (snakemake results/aggregate/results.csv)",
+    )
+
+
+def design_values(design, column):
+    """The configured values of one key column (sorted), from a :func:`check_design` design."""
+    if column == "source":
+        return sorted({s for s, _ in design["pairs"]})
+    if column == "activity":
+        return sorted({a for _, a in design["pairs"]})
+    key = {"protocol": "protocols", "method": "methods", "seed": "seeds"}.get(column, column)
+    return sorted(design[key])
 
 
 def read_paper_tables(path):
@@ -171,8 +228,10 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     paper : DataFrame from :func:`read_paper_tables`.
     methods : method keys in column order; labels : {method: column label}.
     n_train : training sizes of the study (rows per activity).
-    status : {paper activity name: studied activity id, or a sentence saying why there is no row and how
-        to get the data}; a paper activity missing from ``status`` gets "no data".
+    status : {paper activity name: studied activity id, or {"kind": why there is no row, ...}} (see
+        :data:`bsrbench.reporting.report.NO_ROW`); such rows say why and point to the note under the tables
+        (:func:`bsrbench.reporting.report.missing_data_note`); a paper activity missing from ``status`` gets
+        "no data".
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
         the random protocol, the paper's.
     skipped : {protocol: {activity id: [note, ...]}}: training sizes not run because too few test frames
@@ -184,6 +243,8 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     if table not in PAPER_TABLES:
         raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
     ncol = 2 + len(methods)
+    # fixed-width method columns that fill the 17.8 cm text width (activity 3.1 cm, N 0.8 cm, 3.5 pt gaps)
+    box = min(1.8, (17.8 - 3.1 - 0.8 - 0.25 * (len(methods) + 1)) / max(1, len(methods)))
     sizes = sorted(int(n) for n in n_train)
     s = summary[summary["source"] == source]
     p = paper[paper["table"] == table]
@@ -198,20 +259,26 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             caption += " Italic rows: the paper's numbers."
         out += [
             r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
+            r"\centering\footnotesize\setlength{\tabcolsep}{3.5pt}",
             rf"\caption{{{caption}}}",
             rf"\label{{tab:{table}-{source}-{protocol}}}",
-            r"\begin{tabular}{@{}p{2.9cm}r" + "c" * len(methods) + "@{}}",
+            # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
+            r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{3.1cm}r"
+            + "c" * len(methods) + "@{}}",
             r"\toprule",
             # fixed-width headers keep the columns apart in tables whose rows are all notes
-            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[1.8cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
+            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[{box:.2f}cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
         ]
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
             name = latex_escape(paper_name)
-            activity = status.get(paper_name, f"no {source} data on this machine")
-            if activity not in set(sp["activity"]):
-                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}p{{0.8\linewidth}}@{{}}}}{{\raggedright\emph{{{latex_escape(activity)}}}}}"
+            activity = status.get(paper_name, {"kind": "none"})
+            if isinstance(activity, dict) or activity not in set(sp["activity"]):
+                from .report import NO_ROW
+
+                why = NO_ROW.get(activity.get("kind"), "no data") if isinstance(activity, dict) else activity
+                why = latex_escape(why) + "; see the note below the tables"
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{why}}}}}"
                 out.append(_row([name, note]))
                 continue
             notes = {}
