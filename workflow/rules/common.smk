@@ -373,12 +373,15 @@ def data_status(source):
         if row["source"] != source:
             continue
         pa, a = row["paper_activity"], row["activity"]
-        if pa in out and out[pa] in studied:
+        if isinstance(out.get(pa), str):  # already a studied activity
             continue
         if a is not None and a in studied:
             out[pa] = a
             continue
         kind = "none" if a is None else "here" if row["available"] else "download" if row["command"] else "missing"
+        rank = ("none", "missing", "download", "here")  # several data sets may serve one paper activity
+        if pa in out and rank.index(out[pa]["kind"]) >= rank.index(kind):
+            continue
         out[pa] = {
             "kind": kind,
             "activity": a or "",
