@@ -8,6 +8,12 @@ from snakemake.utils import validate
 
 validate(config, "../schemas/config.schema.yaml")
 
+#: Root of this study's results: every rule writes its fit, CV, aggregate and benchmark files under it (the
+#: features and poses of results/features and results/mocap do not depend on the study and are shared).
+RESULTS = f"results/{config['study']}"
+#: Root of this study's logs.
+LOGS = f"logs/{config['study']}"
+
 
 wildcard_constraints:
     protocol="random|contiguous",
@@ -105,7 +111,7 @@ def study_pairs():
 
 def fit_targets(ext="json"):
     return [
-        f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
+        f"{RESULTS}/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
         for p in config["protocols"]
         for s, a in study_pairs()
         for m in run_methods()
@@ -138,7 +144,7 @@ def cv_input(wildcards):
         return []
     seed = 0 if mode == "per_size" else wildcards.seed
     w = wildcards
-    return f"results/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
+    return f"{RESULTS}/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
 
 
 def method_grid(wildcards):
@@ -187,7 +193,7 @@ def subjective_inputs(wildcards):
         ],
         "features": [f"results/features/{wildcards.source}/{a}.npz" for a in acts],
         "predictions": [
-            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{n}/seed0.npz"
+            f"{RESULTS}/fit/{p}/{wildcards.source}/{a}/{m}/n{n}/seed0.npz"
             for a in acts
             for m in shown
         ],
@@ -212,7 +218,7 @@ def trace_input(wildcards):
     s, a = study_pairs()[0]
     n = max(config["n_train"])
     p = config["protocols"][0]
-    return f"results/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed0.npz"
+    return f"{RESULTS}/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed0.npz"
 
 
 def activity_labels(source):
@@ -250,7 +256,7 @@ def data_status(source):
 
 def study_targets():
     return [
-        "results/aggregate/results.csv",
+        f"{RESULTS}/aggregate/results.csv",
         *table_targets(),
         *figure_targets("pdf"),
         "reports/report.pdf",

@@ -1,9 +1,9 @@
-# Tables, figures, generated text and the PDF report, all from results/aggregate/results.csv.
+# Tables, figures, generated text and the PDF report, all from {RESULTS}/aggregate/results.csv.
 
 
 rule table:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         report(
@@ -28,7 +28,7 @@ rule table:
 
 rule report_text:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         findings="reports/tables/findings.tex",
@@ -37,6 +37,8 @@ rule report_text:
         "logs/report/report_text.log",
     params:
         labels=method_labels(),
+        study=config["study"],
+        results=RESULTS,
         tables=table_targets(),
         figures=figure_targets("pdf"),
     threads: 1
@@ -48,7 +50,7 @@ rule report_text:
 
 rule plot_error_vs_ntrain:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         pdf="reports/figures/error_vs_ntrain_{source}.pdf",
@@ -71,7 +73,7 @@ rule plot_error_vs_ntrain:
 
 rule plot_calibration:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
     output:
         pdf="reports/figures/calibration.pdf",
         png=report(
@@ -93,7 +95,7 @@ rule plot_calibration:
 
 rule plot_trace:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         predictions=trace_input,
     output:
         pdf="reports/figures/trace.pdf",

@@ -23,6 +23,7 @@ write_generated(
     read_results(sm.input.results),
     read_paper_tables(sm.input.paper),
     labels=dict(sm.params.labels),
+    study=(sm.params.study, sm.params.results),
 )
 figures = []
 for f in sm.params.figures:
