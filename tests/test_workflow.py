@@ -144,6 +144,8 @@ def test_another_study_touches_nothing_of_this_one(ci_run, args):
     fits = [f for f in planned if "/fit/" in f]
     assert fits and all(f.startswith(f"results/{study}/fit/") for f in fits)
     assert not [f for f in planned if f.startswith("results/ci/")]
+    # shared features and poses stay up to date too (only reports/, which names the study it shows, is redone)
+    assert not [f for f in planned if f.startswith("results/") and (ci_run / f).exists()]
     assert r"Study: \textbf{ci}" in (ci_run / "reports" / "tables" / "findings.tex").read_text()
 
 

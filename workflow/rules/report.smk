@@ -38,7 +38,6 @@ rule report_text:
     params:
         labels=method_labels(),
         study=config["study"],
-        results=RESULTS,
         tables=table_targets(),
         figures=figure_targets("pdf"),
     threads: 1

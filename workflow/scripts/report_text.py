@@ -23,7 +23,7 @@ write_generated(
     read_results(sm.input.results),
     read_paper_tables(sm.input.paper),
     labels=dict(sm.params.labels),
-    study=(sm.params.study, sm.params.results),
+    study=(sm.params.study, Path(sm.input.results).parent.parent.as_posix()),  # results/{study}/aggregate/..
 )
 figures = []
 for f in sm.params.figures:
