@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,12 +21,13 @@ def server_socket(tmp_path, monkeypatch):
     """A private server for this test (started on first use), shut down afterwards."""
     path = tmp_path / "js.sock"
     monkeypatch.setenv("BSRBENCH_JOBSERVER_SOCKET", str(path))
+    monkeypatch.delenv(jobserver.OWNER_VAR, raising=False)
     yield path
-    if path.exists():  # ask it to stop: a request with a foreign fingerprint makes it exit
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.connect(str(path))
-            jobserver._send(s, {"fingerprint": "stop", "target": "", "job": {}, "cwd": "/"})
-            jobserver._recv(s)
+    jobserver.shutdown(path)
+
+
+def _server_files(path):
+    return sorted(p.name for p in path.parent.glob(path.name + "*"))
 
 
 def _ping(tmp_path, **params):
@@ -119,3 +121,65 @@ def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
     assert a["error"] == b["error"] and a["params"] == b["params"]
     for k in a["_pred"]:
         np.testing.assert_array_equal(a["_pred"][k], b["_pred"][k], err_msg=k)
+
+
+def test_shutdown_stops_the_server_and_removes_its_files(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+    assert _server_files(server_socket) == ["js.sock", "js.sock.lock", "js.sock.log"]
+    server_pid = _listening_pid(server_socket)
+    assert jobserver.shutdown(server_socket) is True
+    assert _server_files(server_socket) == []
+    _wait_gone(server_pid)
+    assert jobserver.shutdown(server_socket) is False  # nothing to stop: a no-op
+
+
+def test_server_stops_when_the_snakemake_process_it_served_is_gone(server_socket, tmp_path, monkeypatch):
+    """A killed Snakemake run (no onsuccess/onerror hook) still stops the server, well before the idle timeout."""
+    owner = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    monkeypatch.setenv(jobserver.OWNER_VAR, str(owner.pid))
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+    server_pid = _listening_pid(server_socket)
+    time.sleep(1.5)
+    assert _server_files(server_socket) == ["js.sock", "js.sock.lock", "js.sock.log"]  # owner alive: serving
+    owner.kill()
+    owner.wait()
+    _wait_gone(server_pid, timeout=10)
+    assert _server_files(server_socket) == []
+
+
+def test_shutdown_removes_what_a_killed_server_left(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+    server_pid = _listening_pid(server_socket)
+    os.kill(server_pid, signal.SIGKILL)
+    _wait_gone(server_pid)
+    assert "js.sock" in _server_files(server_socket)
+    assert jobserver.shutdown(server_socket) is False
+    assert _server_files(server_socket) == []
+
+
+def _listening_pid(path):
+    """The pid of the process listening on the Unix socket ``path`` (from /proc/net/unix and /proc/*/fd)."""
+    inode = next(  # the listening socket (flag __SO_ACCEPTCON), not a connection accepted on it
+        ln.split()[6] for ln in open("/proc/net/unix") if ln.rstrip().endswith(str(path)) and ln.split()[3] == "00010000"
+    )
+    for fd_dir in Path("/proc").glob("[0-9]*/fd"):
+        try:
+            if any(os.readlink(fd) == f"socket:[{inode}]" for fd in fd_dir.iterdir()):
+                return int(fd_dir.parent.name)
+        except OSError:
+            continue
+    raise AssertionError(f"no process listens on {path}")
+
+
+def _wait_gone(pid, timeout=30):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().split()[2] == "Z":  # exited, not yet reaped by its parent
+                    return
+        except (ProcessLookupError, FileNotFoundError):
+            return
+        time.sleep(0.05)
+    pytest.fail(f"process {pid} still alive")

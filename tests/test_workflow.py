@@ -1,5 +1,6 @@
 """The Snakemake workflow: lint, dry runs (default, paper, SLURM profile), config errors before any job,
-and a real end-to-end run of config/ci.yaml in a temporary copy of the working tree."""
+lists overridden from the command line, and a real end-to-end run of config/ci.yaml in a temporary copy of the
+working tree (studies kept apart, the job server gone after the run, the report rules local under SLURM)."""
 
 import os
 import re
@@ -39,12 +40,12 @@ def test_lint_is_clean():
     [
         (),
         ("--configfile", "config/paper.yaml"),
-        ("--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml"),
+        ("--workflow-profile", "profiles/slurm", "--configfile", "config/paper.yaml"),
     ],
     ids=["default", "paper", "slurm-profile"],
 )
 def test_dry_run(args):
-    res = smk("-n", "--cores", "2", *args) if "--profile" not in args else smk("-n", *args)
+    res = smk("-n", "--cores", "2", *args) if "--workflow-profile" not in args else smk("-n", *args)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     out = res.stdout + res.stderr
     # a plan (fits from scratch; only report jobs in a working tree with results) or nothing to do
@@ -81,7 +82,7 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
 def ci_run(tmp_path_factory):
     """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
     work = tmp_path_factory.mktemp("study")
-    for name in ("workflow", "config"):
+    for name in ("Snakefile", "workflow", "profiles", "config"):
         src = ROOT / name
         (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
     (work / "reports").mkdir()
@@ -95,12 +96,13 @@ def ci_run(tmp_path_factory):
 def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
     import pandas as pd
 
-    df = pd.read_csv(ci_run / "results" / "aggregate" / "results.csv")
+    df = pd.read_csv(ci_run / "results" / "ci" / "aggregate" / "results.csv")
     assert len(df) == 7 * 2  # 7 methods x 1 activity x 1 size x 2 seeds
     assert set(df["method"]) == {"RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge"}
     assert df["error"].between(0, 180).all()
     assert df.loc[df["method"] == "PM", "coverage_90"].between(0, 1).all()
-    assert (ci_run / "results" / "cv" / "random" / "hsc" / "golf" / "PM" / "n30" / "seed0.json").is_file()
+    assert (ci_run / "results" / "ci" / "cv" / "random" / "hsc" / "golf" / "PM" / "n30" / "seed0.json").is_file()
+    assert not (ci_run / "results" / "fit").exists()  # every fit of the study is under results/ci/
 
 
 def test_ci_tables_have_the_paper_rows(ci_run):
@@ -125,6 +127,82 @@ def test_ci_pdf_and_html_report(ci_run):
     # snakemake issue #4280: the default `disk` resource's size coroutine is never awaited (see the profile)
     assert "never awaited" not in res.stderr, res.stderr[-3000:]
     assert (ci_run / "reports" / "report.html").stat().st_size > 10_000
+    assert "study <strong>ci</strong>" in (ci_run / "reports" / "report.html").read_text()  # the report names it
+
+
+def test_job_server_stopped_with_the_run_and_left_no_files(ci_run):
+    from bsrbench import jobserver
+
+    sock = jobserver.socket_path(cwd=ci_run)
+    left = sorted(str(p) for p in sock.parent.glob(sock.name + "*"))
+    assert left == [], left
+
+
+def _planned_outputs(res):
+    return [f.strip() for ln in res.stdout.splitlines() if ln.strip().startswith("output:")
+            for f in ln.split(":", 1)[1].split(",")]
+
+
+@pytest.mark.parametrize("args", [("--config", "study=other"), ("--configfile", "config/paper.yaml")],
+                         ids=["other-study", "paper"])
+def test_another_study_touches_nothing_of_this_one(ci_run, args):
+    res = smk("-n", "--cores", "2", *args, cwd=ci_run)
+    assert res.returncode == 0, res.stderr[-3000:]
+    planned = _planned_outputs(res)
+    study = "other" if "study=other" in args else "paper"
+    fits = [f for f in planned if "/fit/" in f]
+    assert fits and all(f.startswith(f"results/{study}/fit/") for f in fits)
+    assert not [f for f in planned if f.startswith("results/ci/")]
+    # shared features and poses stay up to date too (only reports/, which names the study it shows, is redone)
+    assert not [f for f in planned if f.startswith("results/") and (ci_run / f).exists()]
+    assert r"Study: \textbf{ci}" in (ci_run / "reports" / "tables" / "findings.tex").read_text()
+
+
+#: Rules submitted as cluster jobs under profiles/slurm; every other rule is in the Snakefile's `localrules`.
+CLUSTER_RULES = {"fit", "fit_chain", "cv", "features_codebook", "features_mocap"}
+LOCAL_RULES = {"all", "aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration", "plot_trace", "plot_gxy",
+                 "report_why_pm", "pool_chains",
+               "plot_subjective", "report_pdf", "features_mat", "mocap_poses", "download_cmu_asf", "download_cmu_amc"}
+
+
+def test_every_rule_is_local_or_a_cluster_job():
+    res = smk("--list-rules")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert set(res.stdout.split()) == CLUSTER_RULES | LOCAL_RULES
+
+
+def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
+    """Under the SLURM executor the report, tables, plots, aggregate, poses and .mat checks run on this host.
+
+    Snakemake's dry run does not mark local rules (it leaves the decision to execution), so this is a real run
+    of the SLURM profile; no SLURM is installed here, so a rule that was submitted would fail."""
+    for d in ("results/ci/aggregate", "reports/tables", "reports/figures"):
+        shutil.rmtree(ci_run / d)
+    (ci_run / "reports" / "report.pdf").unlink()
+    targets = ["reports/report.pdf", "results/features/hsc/run.npz", "results/mocap/mocap/walk.npz"]
+    res = smk(*targets, "--workflow-profile", "profiles/slurm", "--configfile", "config/ci.yaml", cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-4000:]
+    assert "workflow specific profile profiles/slurm" in out
+    ran_local = set(re.findall(r"^localrule (\w+):", out, re.M))
+    submitted = set(re.findall(r"^rule (\w+):", out, re.M))
+    assert ran_local == {"aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration", "plot_trace",
+                         "plot_subjective", "report_pdf", "features_mat", "mocap_poses"}
+    assert submitted == set()  # and the fits and CV of the local run were not rerun: where they ran is no param
+    assert (ci_run / "reports" / "report.pdf").read_bytes()[:5] == b"%PDF-"
+
+
+@pytest.mark.skipif(shutil.which("sbatch") is not None, reason="a real SLURM: this would submit jobs")
+def test_slurm_profile_submits_fit_and_cv_jobs(ci_run):
+    """New fit and CV jobs go to SLURM (here, without SLURM, their submission fails); nothing else is touched."""
+    targets = ["results/ci/fit/random/hsc/golf/NN1/n40/seed0.json", "results/ci/cv/random/hsc/golf/Ridge/n40/seed0.json"]
+    res = smk(*targets, "--workflow-profile", "profiles/slurm", "--configfile", "config/ci.yaml", cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode != 0
+    assert set(re.findall(r"^rule (\w+):", out, re.M)) == {"fit", "cv"}, out[-3000:]
+    assert not re.search(r"^localrule (fit|cv):", out, re.M)
+    assert "Job submission failed" in out, out[-3000:]
+    assert not any((ci_run / t).exists() for t in targets)
 
 
 def _snapshot(work):
@@ -202,7 +280,7 @@ def test_ci_rerun_is_a_no_op(ci_run):
 @pytest.mark.slow
 def test_ci_tables_are_identical_when_everything_is_recomputed(ci_run):
     before = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
-    for d in ("results/fit", "results/cv", "results/aggregate", "reports/tables", "reports/figures"):
+    for d in ("results/ci/fit", "results/ci/cv", "results/ci/aggregate", "reports/tables", "reports/figures"):
         shutil.rmtree(ci_run / d)
     (ci_run / "reports" / "report.pdf").unlink()
     res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run, timeout=900)

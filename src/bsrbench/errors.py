@@ -9,10 +9,12 @@ class InputError(ValueError):
 
 
 class DataFileError(InputError):
-    """A data file is missing, malformed or fails its checksum. The message names the file."""
+    """A data file is missing, malformed or fails its checksum. The message names the file (``path``) and, for
+    a malformed text file, the line (``line``, 1-based, also written in ``message``)."""
 
-    def __init__(self, path, message):
+    def __init__(self, path, message, line=None):
         self.path = str(path)
+        self.line = line
         super().__init__(f"{path}: {message}")
 
 

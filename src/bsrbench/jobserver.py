@@ -9,8 +9,13 @@ Unix socket). The child runs exactly the code the job would run in-process, with
 and stderr, and results are identical.
 
 Lifecycle and safety:
-- The first job starts the server (``python -m bsrbench.jobserver``) in its own session; a lock file keeps
-  concurrent jobs from starting two. The server exits after ``IDLE_SECONDS`` without jobs.
+- One server per environment and working directory. The first job starts it (``python -m bsrbench.jobserver``)
+  in its own session; a lock file keeps concurrent jobs from starting two.
+- It stops when the Snakemake run that started it ends: the Snakefile's ``onsuccess``/``onerror`` handlers
+  call :func:`shutdown`; if Snakemake is killed instead, the server notices that the run's main process (its
+  pid travels with every request, from ``BSRBENCH_JOBSERVER_OWNER``, which the Snakefile sets) is gone; and
+  it exits after ``IDLE_SECONDS`` without jobs in any case. On exit it removes its socket, its lock file and its
+  log (the log only when empty: a non-empty one records a server failure and is kept).
 - Every request carries a fingerprint of the package's source files (paths, sizes, mtimes) and of the
   interpreter. A server started from other code answers "stale" and exits, and the job starts a fresh one,
   so an edited model never runs with old code.
@@ -38,8 +43,10 @@ import time
 import traceback
 from pathlib import Path
 
-#: The server exits after this long without a job.
+#: The server exits after this long without a job (a fallback: the run's end stops it, see the module docstring).
 IDLE_SECONDS = 120.0
+#: Environment variable holding the pid of the Snakemake process whose run the jobs belong to.
+OWNER_VAR = "BSRBENCH_JOBSERVER_OWNER"
 #: How long a job waits for a server it started to listen.
 START_TIMEOUT = 60.0
 #: Modules the server imports before forking (what the jobs would otherwise import each time).
@@ -93,12 +100,14 @@ def fingerprint():
     return h.hexdigest()
 
 
-def socket_path():
-    """A per-user, per-environment socket path (short enough for AF_UNIX); ``BSRBENCH_JOBSERVER_SOCKET``
-    overrides it (tests use their own server)."""
+def socket_path(cwd=None):
+    """A per-user, per-environment, per-working-directory (``cwd``, default the current one) socket path (short
+    enough for AF_UNIX); ``BSRBENCH_JOBSERVER_SOCKET`` overrides it (tests use their own server). The server's
+    lock and log files are this path + ``.lock`` and ``.log``."""
     if os.environ.get("BSRBENCH_JOBSERVER_SOCKET"):
         return Path(os.environ["BSRBENCH_JOBSERVER_SOCKET"])
-    key = hashlib.sha256(f"{sys.prefix}|{_PKG}".encode()).hexdigest()[:16]
+    cwd = Path(cwd or os.getcwd()).resolve()
+    key = hashlib.sha256(f"{sys.prefix}|{_PKG}|{cwd}".encode()).hexdigest()[:16]
     base = Path(os.environ.get("XDG_RUNTIME_DIR") or "/tmp")
     return base / f"bsrbench-jobserver-{os.getuid()}-{key}.sock"
 
@@ -190,11 +199,24 @@ def _connect(path):
     return sock
 
 
+def _locked(path):
+    """Open and lock ``<path>.lock``; retry if an exiting server unlinked the file while we waited for it."""
+    lock_path = f"{path}.lock"
+    while True:
+        lock = open(lock_path, "a")
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if os.stat(lock_path).st_ino == os.fstat(lock.fileno()).st_ino:
+                return lock
+        except FileNotFoundError:
+            pass
+        lock.close()
+
+
 def _start_server(path):
     """Start a server unless another job is starting one; wait until it listens."""
-    lock = open(f"{path}.lock", "w")
+    lock = _locked(path)
     try:
-        fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             return _connect(path)
         except OSError:
@@ -231,7 +253,7 @@ def _run_remote(target, job):
         except OSError:
             sock = _start_server(path)
         with sock:
-            _send(sock, {"target": target, "job": job, "fingerprint": fp, "cwd": os.getcwd()})
+            _send(sock, {"target": target, "job": job, "fingerprint": fp, "cwd": os.getcwd(), "owner": _owner()})
             status, detail = _recv(sock)
         if status != "stale":
             return status, detail
@@ -240,6 +262,78 @@ def _run_remote(target, job):
         while path.exists() and time.monotonic() < deadline:
             time.sleep(0.05)
     raise OSError(errno.EAGAIN, "job server stayed stale")
+
+
+def _owner():
+    try:
+        return int(os.environ.get(OWNER_VAR, ""))
+    except ValueError:
+        return None
+
+
+def shutdown(path=None, timeout=30.0):
+    """Stop the job server of this working directory (or at ``path``) and wait until its files are gone.
+
+    Called by the Snakefile's ``onsuccess`` and ``onerror`` handlers. Without a listening server, removes what a
+    killed one left (socket, lock, empty log). Returns True if a server was stopped; never raises.
+    """
+    path = Path(path) if path else socket_path()
+    try:
+        try:
+            sock = _connect(path)
+        except OSError:
+            with _locked(path) as lock:  # no server: tidy up, unless one starts right now
+                try:
+                    _connect(path).close()
+                except OSError:
+                    _remove_files(path, lock, socket_ino=None)
+            return False
+        with sock:
+            _send(sock, {"shutdown": True})
+            try:
+                _recv(sock)
+            except (EOFError, OSError):
+                pass
+        deadline = time.monotonic() + timeout
+        while Path(f"{path}.lock").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return True
+    except Exception as exc:  # noqa: BLE001 - a hook must not fail the run; the idle timeout remains
+        print(f"bsrbench.jobserver: could not stop the server at {path}: {exc}", file=sys.stderr)
+        return False
+
+
+def _remove_files(path, lock, socket_ino):
+    """Remove the socket (if ``socket_ino`` is None or it is still that inode), the empty log and the lock
+    (while ``lock``, its open file, holds the lock, so that no client is starting a server meanwhile)."""
+    path = Path(path)
+    try:
+        if socket_ino is None or os.stat(path).st_ino == socket_ino:
+            path.unlink()
+    except FileNotFoundError:
+        pass
+    log = Path(f"{path}.log")
+    try:
+        if log.stat().st_size == 0:
+            log.unlink()
+        else:
+            print(f"bsrbench.jobserver: the server wrote to {log} (kept)", file=sys.stderr)
+    except FileNotFoundError:
+        pass
+    try:
+        os.unlink(lock.name)
+    except FileNotFoundError:
+        pass
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def ping(job):
@@ -320,7 +414,9 @@ def _supervise(conn, request):
 
 
 def serve(path, idle=IDLE_SECONDS):
-    """Import the job modules, listen on ``path`` and fork a supervisor per request until idle."""
+    """Import the job modules, listen on ``path`` and fork a supervisor per request, until asked to shut down,
+    until every Snakemake process it served for is gone, or until idle for ``idle`` seconds; then remove its
+    files."""
     for name in PRELOAD:
         try:
             importlib.import_module(name)
@@ -333,9 +429,10 @@ def serve(path, idle=IDLE_SECONDS):
         path.unlink()
     srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     srv.bind(str(path))
+    socket_ino = os.stat(path).st_ino
     srv.listen(64)
     srv.settimeout(1.0)
-    children, last = set(), time.monotonic()
+    children, owners, last = set(), set(), time.monotonic()
     try:
         while True:
             for pid in list(children):
@@ -345,6 +442,8 @@ def serve(path, idle=IDLE_SECONDS):
                 last = time.monotonic()
             elif time.monotonic() - last > idle:
                 break
+            elif owners and not any(_alive(pid) for pid in owners):
+                break  # the Snakemake run ended without the shutdown hook (killed)
             try:
                 conn, _ = srv.accept()
             except TimeoutError:
@@ -356,6 +455,12 @@ def serve(path, idle=IDLE_SECONDS):
             except (EOFError, OSError, pickle.UnpicklingError):
                 conn.close()
                 continue
+            if request.get("shutdown"):
+                _send(conn, ("bye", None))
+                conn.close()
+                break
+            if request.get("owner"):
+                owners.add(int(request["owner"]))
             if request.get("fingerprint") != fp:  # the client hashed the sources just now
                 _send(conn, ("stale", None))
                 conn.close()
@@ -368,10 +473,10 @@ def serve(path, idle=IDLE_SECONDS):
             children.add(pid)
     finally:
         srv.close()
-        try:
-            path.unlink()
-        except FileNotFoundError:
-            pass
+        for pid in children:  # supervisors of jobs still running: they end with their client
+            os.waitpid(pid, 0)
+        with _locked(path) as lock:
+            _remove_files(path, lock, socket_ino)
 
 
 def _warm_numba():

@@ -6,14 +6,14 @@ rule aggregate:
         fit_targets("json"),
     output:
         report(
-            "results/aggregate/results.csv",
+            f"{RESULTS}/aggregate/results.csv",
             category="Results",
             caption="../report/results.rst",
         ),
     log:
-        "logs/aggregate/aggregate.log",
+        f"{LOGS}/aggregate/aggregate.log",
     benchmark:
-        "results/benchmarks/aggregate/aggregate.tsv"
+        f"{RESULTS}/benchmarks/aggregate/aggregate.tsv"
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

@@ -10,6 +10,12 @@ from snakemake.utils import validate
 
 validate(config, "../schemas/config.schema.yaml")
 
+#: Root of this study's results: every rule writes its fit, CV, aggregate and benchmark files under it (the
+#: features and poses of results/features and results/mocap do not depend on the study and are shared).
+RESULTS = f"results/{config['study']}"
+#: Root of this study's logs.
+LOGS = f"logs/{config['study']}"
+
 
 wildcard_constraints:
     protocol="random|contiguous|cross_trial",
@@ -156,7 +162,7 @@ def chain_inputs(wildcards):
     """The chain files of a split, one per chain of the method."""
     w = wildcards
     return [
-        f"results/fit/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{w.seed}/chain{c}.npz"
+        f"{RESULTS}/fit/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{w.seed}/chain{c}.npz"
         for c in range(n_chains(w.method))
     ]
 
@@ -201,7 +207,7 @@ def study_design():
 
 def fit_targets(ext="json"):
     return [
-        f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
+        f"{RESULTS}/fit/{p}/{s}/{a}/{m}/n{n}/seed{k}.{ext}"
         for p in config["protocols"]
         for s, a in study_pairs()
         for m in run_methods()
@@ -235,7 +241,7 @@ def cv_input(wildcards):
         return []
     seed = first_seed() if mode == "per_size" else wildcards.seed
     w = wildcards
-    return f"results/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
+    return f"{RESULTS}/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
 
 
 def method_grid(wildcards):
@@ -313,7 +319,7 @@ def subjective_inputs(wildcards):
         ],
         "features": [f"results/features/{wildcards.source}/{a}.npz" for a in acts],
         "predictions": [
-            f"results/fit/{p}/{wildcards.source}/{a}/{m}/n{largest_run_n(p, wildcards.source, a)}/seed{first_seed()}.npz"
+            f"{RESULTS}/fit/{p}/{wildcards.source}/{a}/{m}/n{largest_run_n(p, wildcards.source, a)}/seed{first_seed()}.npz"
             for a in acts
             for m in shown
         ],
@@ -338,7 +344,7 @@ def trace_input(wildcards):
     s, a = study_pairs()[0]
     p = config["protocols"][0]
     n = largest_run_n(p, s, a)
-    return f"results/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed{first_seed()}.npz"
+    return f"{RESULTS}/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed{first_seed()}.npz"
 
 
 def gxy_inputs(wildcards):
@@ -347,7 +353,7 @@ def gxy_inputs(wildcards):
     n = min(config["n_train"])
     p = config["protocols"][0]
     return [
-        f"results/fit/{p}/{s}/{a}/{m}/n{n}/seed{first_seed()}.npz"
+        f"{RESULTS}/fit/{p}/{s}/{a}/{m}/n{n}/seed{first_seed()}.npz"
         for m in config["report"].get("gxy_methods") or []
     ]
 
@@ -393,7 +399,7 @@ def data_status(source):
 
 def study_targets():
     return [
-        "results/aggregate/results.csv",
+        f"{RESULTS}/aggregate/results.csv",
         *table_targets(),
         *figure_targets("pdf"),
         *why_pm_figures("pdf"),
@@ -408,7 +414,7 @@ def _check_report_is_current():
     table of another configuration (the one check that matters: the HTML report would show another study)."""
     if not any(a == "--report" or a.startswith("--report=") for a in sys.argv):
         return
-    aggregate = Path("results/aggregate/results.csv")
+    aggregate = Path(f"{RESULTS}/aggregate/results.csv")
     if aggregate.exists():
         from bsrbench.reporting.tables import read_results
 

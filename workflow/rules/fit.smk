@@ -6,11 +6,11 @@ rule cv:
         features="results/features/{source}/{activity}.npz",
         code=estimator_sources,
     output:
-        json="results/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
+        json=f"{RESULTS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
     log:
-        "logs/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+        f"{LOGS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     benchmark:
-        "results/benchmarks/cv/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.tsv"
+        f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
         estimator=lambda w: method_setting(w.method)["estimator"],
         fixed=lambda w: method_setting(w.method).get("params", {}),
@@ -20,7 +20,6 @@ rule cv:
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
-        job_server=config["job_server"],
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
@@ -37,12 +36,12 @@ rule fit:
         cv=cv_input,
         code=estimator_sources,
     output:
-        row="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
-        predictions="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.npz",
+        row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
+        predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
     log:
-        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     benchmark:
-        "results/benchmarks/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.tsv"
+        f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
         estimator=lambda w: method_setting(w.method)["estimator"],
         fixed=lambda w: method_setting(w.method).get("params", {}),
@@ -51,7 +50,6 @@ rule fit:
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
-        job_server=config["job_server"],
     wildcard_constraints:
         method=method_regex(chained=False),
     threads: 1
@@ -72,18 +70,17 @@ rule fit_chain:
         cv=cv_input,
         code=estimator_sources,
     output:
-        chain="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.npz",
+        chain=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.npz",
     log:
-        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.log",
+        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.log",
     benchmark:
-        "results/benchmarks/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}/chain{chain}.tsv"
+        f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
     params:
         estimator=lambda w: method_setting(w.method)["estimator"],
         fixed=lambda w: method_setting(w.method).get("params", {}),
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
-        job_server=config["job_server"],
     wildcard_constraints:
         method=method_regex(chained=True),
     threads: 1
@@ -102,10 +99,10 @@ rule pool_chains:
         cv=cv_input,
         chains=chain_inputs,
     output:
-        row="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.json",
-        predictions="results/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.npz",
+        row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
+        predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
     log:
-        "logs/fit/{protocol}/{source}/{activity}/{method}/n{n_train}/seed{seed}.log",
+        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     params:
         estimator=lambda w: method_setting(w.method)["estimator"],
         fixed=lambda w: method_setting(w.method).get("params", {}),
@@ -114,7 +111,6 @@ rule pool_chains:
         pose_transform=config["pose_transform"],
         min_test=config["min_test"],
         gap=config["gap"],
-        job_server=config["job_server"],
     wildcard_constraints:
         method=method_regex(chained=True),
     threads: 1

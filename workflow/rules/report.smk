@@ -1,9 +1,9 @@
-# Tables, figures, generated text and the PDF report, all from results/aggregate/results.csv.
+# Tables, figures, generated text and the PDF report, all from {RESULTS}/aggregate/results.csv.
 
 
 rule table:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         report(
@@ -32,7 +32,7 @@ rule table:
 
 rule report_text:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         findings="reports/tables/findings.tex",
@@ -42,6 +42,7 @@ rule report_text:
     params:
         design=study_design(),
         labels=method_labels(),
+        study=config["study"],
         tables=table_targets(),
         figures=figure_targets("pdf"),
         status={s: data_status(s) for s in report_sources()},
@@ -56,7 +57,7 @@ rule report_text:
 
 rule plot_error_vs_ntrain:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         pdf="reports/figures/error_vs_ntrain_{source}.pdf",
@@ -82,7 +83,7 @@ rule plot_error_vs_ntrain:
 
 rule plot_calibration:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
     output:
         pdf="reports/figures/calibration_{source}.pdf",
         png=report(
@@ -106,7 +107,7 @@ rule plot_calibration:
 
 rule plot_trace:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         predictions=trace_input,
     output:
         pdf="reports/figures/trace.pdf",
@@ -129,7 +130,7 @@ rule plot_trace:
 
 rule plot_gxy:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         predictions=gxy_inputs,
     output:
         pdf="reports/figures/gxy.pdf",
@@ -151,7 +152,7 @@ rule plot_gxy:
 
 rule report_why_pm:
     input:
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
         section="reports/tables/why_pm.tex",
@@ -178,7 +179,7 @@ rule report_why_pm:
 rule plot_subjective:
     input:
         unpack(subjective_inputs),
-        results="results/aggregate/results.csv",
+        results=f"{RESULTS}/aggregate/results.csv",
     output:
         pdf="reports/figures/subjective_{source}.pdf",
         png=report(

@@ -2,4 +2,4 @@
 
 from bsrbench.jobserver import job_from_snakemake, run
 
-run("bsrbench.jobs:fit_chain", job_from_snakemake(snakemake), use_server=snakemake.params.job_server)  # noqa: F821
+run("bsrbench.jobs:fit_chain", job_from_snakemake(snakemake), use_server=snakemake.config["job_server"])  # noqa: F821

@@ -6,4 +6,6 @@ with `job_server: false`). This script imports nothing heavy, so that a job cost
 
 from bsrbench.jobserver import job_from_snakemake, run
 
-run("bsrbench.jobs:fit", job_from_snakemake(snakemake), use_server=snakemake.params.job_server)  # noqa: F821
+# job_server is read from the config, not a rule param: where a job runs does not change its result, so
+# switching it (the SLURM profile sets false) must not rerun finished jobs.
+run("bsrbench.jobs:fit", job_from_snakemake(snakemake), use_server=snakemake.config["job_server"])  # noqa: F821

@@ -53,7 +53,14 @@ def caption(kind, source):
     raise ValueError(f"no caption for figure kind {kind!r}")
 
 
-write_generated(sm.output.findings, df, read_paper_tables(sm.input.paper), labels=labels, defaults=defaults)
+write_generated(
+    sm.output.findings,
+    df,
+    read_paper_tables(sm.input.paper),
+    labels=labels,
+    defaults=defaults,
+    study=(sm.params.study, Path(sm.input.results).parent.parent.as_posix()),  # results/{study}/aggregate/..
+)
 KINDS = ("error_vs_ntrain", "subjective", "calibration")
 figures = []
 for f in sm.params.figures:

@@ -19,12 +19,14 @@ rotation ``C M C^-1``, and the ordinary tree forward kinematics of :mod:`.skelet
 use ``Zrotation Yrotation Xrotation`` and these offsets gives the same world positions when every axis is zero.
 """
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataFileError
+from ._text import first_bad_number, is_whole, read_lines, tokens
 from .skeleton import Skeleton, axis_rotation, forward_kinematics
 
 _DOF_CHANNEL = {
@@ -49,7 +51,8 @@ class ASFSkeleton:
 
     ``skeleton`` is the joint tree (root + one joint per bone at the bone's start + an end site per leaf bone);
     ``skeleton.channels`` lists each joint's AMC values in file order, as BVH channel names (rx -> Xrotation).
-    ``axes`` (J, 3, 3): each joint's frame C; ``limits``: bone name -> list of (lo, hi) per dof.
+    ``axes`` (J, 3, 3): each joint's frame C; ``limits``: bone name -> list of (lo, hi) per dof;
+    ``masses``: bone name -> its optional ``bodymass``/``cofmass`` fields (read and kept, not used).
     """
 
     skeleton: Skeleton
@@ -59,152 +62,245 @@ class ASFSkeleton:
     angle_unit: str
     limits: dict = field(default_factory=dict)
     path: str = ""
+    masses: dict = field(default_factory=dict)
 
 
-def _floats(path, lineno, tokens, n, what):
-    if len(tokens) != n:
-        raise DataFileError(path, f"line {lineno}: {what} needs {n} numbers, found {len(tokens)}")
-    try:
-        return [float(x) for x in tokens]
-    except ValueError:
-        bad = next(x for x in tokens if not _isfloat(x))
-        raise DataFileError(path, f"line {lineno}: {what}: {bad!r} is not a number") from None
+def _fail(path, lineno, message):
+    return DataFileError(path, f"line {lineno}: {message}", line=lineno)
 
 
-def _isfloat(x):
-    try:
-        float(x)
-        return True
-    except ValueError:
-        return False
+def _floats(path, lineno, tokens_, n, what):
+    if len(tokens_) != n:
+        raise _fail(path, lineno, f"{what} needs {n} number{'s' if n > 1 else ''}, found {len(tokens_)} values")
+    bad = first_bad_number(tokens_)
+    if bad is not None:
+        raise _fail(path, lineno, f"{what}: {tokens_[bad][:40]!r} is not a number")
+    return [float(x) for x in tokens_]
+
+
+#: ASF sections (Acclaim 1.10); ``:skin`` names skin files and is ignored.
+_SECTIONS = ("version", "name", "units", "documentation", "root", "bonedata", "hierarchy", "skin")
+_BONE_FIELDS = ("id", "name", "direction", "length", "axis", "dof", "limits", "bodymass", "cofmass")
+_LIMIT = re.compile(r"\(\s*([^\s()]+)\s+([^\s()]+)\s*\)")
+_INF = {"inf": float("inf"), "+inf": float("inf"), "-inf": -float("inf")}
+
+
+def _limits(path, lineno, body):
+    """The ``(lo hi)`` intervals of one limits line (commas already blanked); ``inf`` allowed."""
+    out, pos = [], 0
+    for m in _LIMIT.finditer(body):
+        if body[pos : m.start()].strip():
+            break
+        lo_hi = []
+        for x in m.groups():
+            if x.lower() in _INF:
+                lo_hi.append(_INF[x.lower()])
+            else:
+                lo_hi += _floats(path, lineno, [x], 1, "limits")
+        out.append(tuple(lo_hi))
+        pos = m.end()
+    if not out or body[pos:].strip():
+        raise _fail(path, lineno, f"expected limits as '(lo hi)' intervals, found {body.strip()[:60]!r}")
+    return out
 
 
 def parse_asf(path):
-    """Read an ASF skeleton file into an :class:`ASFSkeleton` (errors name the file and line)."""
+    """Read an ASF skeleton file into an :class:`ASFSkeleton`.
+
+    Accepts what Acclaim 1.10 allows: a UTF-8 byte-order mark, LF/CRLF/CR line ends, tabs, commas as white
+    space (``limits (-20.0, 45.0)``), keywords in any letter case, ``#`` comments, the optional bone fields
+    (``id``, ``axis``, ``dof``, ``limits``, ``bodymass``, ``cofmass``) and the ``:version``, ``:name``,
+    ``:units`` (``mass``, ``length``, ``angle``), ``:documentation`` and ``:skin`` sections.
+    Raises :class:`~bsrbench.errors.DataFileError` (an InputError) naming the file and the line (``.line``) and
+    what was expected for anything else.
+    """
     path = Path(path)
-    if not path.is_file():
-        raise DataFileError(path, "file not found (expected an ASF skeleton file)")
-    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    lines = read_lines(path, "an ASF skeleton file")
+    n_lines = max(len(lines), 1)
     section = None
+    seen = {}
     units = {"length": 1.0, "angle": "deg"}
     root = {"order": None, "axis": "XYZ", "position": [0.0, 0.0, 0.0], "orientation": [0.0, 0.0, 0.0]}
     bones = {}
     bone = None
+    last_field = None
     hierarchy = []
-    in_limits = False
+    hier_state = None  # None, "open" after 'begin', "closed" after 'end'
     for k, raw in enumerate(lines):
         lineno = k + 1
-        line = raw.split("#", 1)[0].strip()
-        if not line:
+        line = raw.split("#", 1)[0]
+        t = tokens(line, commas=True)
+        if not t:
             continue
-        t = line.split()
-        if t[0].startswith(":"):
-            section = t[0][1:].lower()
-            in_limits = False
+        key = t[0].lower()
+        if key.startswith(":"):
+            name = key[1:]
+            if name not in _SECTIONS:
+                raise _fail(
+                    path, lineno, f"unknown section {t[0][:40]!r}; expected one of {', '.join(':' + x for x in _SECTIONS)}"
+                )
             if bone is not None:
-                raise DataFileError(path, f"line {lineno}: bone {bone.get('name')!r} has no 'end'")
+                raise _fail(path, lineno, f"bone of line {bone['line']} has no 'end' before {t[0]}")
+            if name in seen:
+                raise _fail(path, lineno, f"a second {t[0]} section (the first is on line {seen[name]})")
+            if name in ("version", "name") and len(t) < 2:
+                raise _fail(path, lineno, f"{t[0]} needs a value")
+            if name in ("units", "documentation", "root", "bonedata", "hierarchy") and len(t) != 1:
+                raise _fail(path, lineno, f"expected {t[0]} alone on its line, found {line.strip()[:60]!r}")
+            seen[name] = lineno
+            section = name
             continue
+        if section == "documentation":
+            continue
+        if section in (None, "version", "name", "skin"):
+            raise _fail(path, lineno, f"unexpected {t[0][:40]!r}; expected a section keyword such as :units or :root")
         if section == "units":
-            if t[0] == "length":
-                units["length"] = _floats(path, lineno, t[1:], 1, "length")[0]
-            elif t[0] == "angle":
+            if key in ("length", "mass"):
+                value = _floats(path, lineno, t[1:], 1, key)[0]
+                if not value > 0:
+                    raise _fail(path, lineno, f"{key} unit must be > 0, found {value}")
+                if key == "length":
+                    units["length"] = value
+            elif key == "angle":
                 if len(t) != 2 or t[1].lower() not in ("deg", "rad"):
-                    raise DataFileError(path, f"line {lineno}: angle unit must be 'deg' or 'rad', found {t[1:]}")
+                    raise _fail(path, lineno, f"angle unit must be 'deg' or 'rad', found {' '.join(t[1:])[:40]!r}")
                 units["angle"] = t[1].lower()
+            else:
+                raise _fail(path, lineno, f"unknown unit {t[0][:40]!r}; expected mass, length or angle")
         elif section == "root":
-            if t[0] == "order":
+            if key == "order":
                 order = tuple(x.upper() for x in t[1:])
                 bad = [x for x in order if x.lower() not in _DOF_CHANNEL]
-                if bad:
-                    raise DataFileError(path, f"line {lineno}: root order has {bad}; expected TX TY TZ RX RY RZ")
-                root["order"] = order
-            elif t[0] == "axis":
-                if len(t) != 2 or sorted(t[1].upper()) != ["X", "Y", "Z"]:
-                    raise DataFileError(path, f"line {lineno}: root axis must be a permutation of XYZ, found {t[1:]}")
-                root["axis"] = t[1].upper()
-            elif t[0] in ("position", "orientation"):
-                root[t[0]] = _floats(path, lineno, t[1:], 3, t[0])
-        elif section == "bonedata":
-            if t[0] == "begin":
-                bone = {"dof": (), "limits": [], "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ", "line": lineno}
-                in_limits = False
-            elif t[0] == "end":
-                if bone is None:
-                    raise DataFileError(path, f"line {lineno}: 'end' without 'begin'")
-                for key in ("name", "direction", "length"):
-                    if key not in bone:
-                        raise DataFileError(path, f"line {bone['line']}: bone has no {key!r}")
-                if bone["limits"] and len(bone["limits"]) != len(bone["dof"]):
-                    raise DataFileError(
-                        path,
-                        f"line {lineno}: bone {bone['name']!r} has {len(bone['limits'])} limits for "
-                        f"{len(bone['dof'])} dof",
+                if bad or not order or len(set(order)) != len(order):
+                    raise _fail(
+                        path, lineno, f"root order {' '.join(t[1:])[:60]!r}; expected distinct TX TY TZ RX RY RZ"
                     )
+                root["order"] = order
+            elif key == "axis":
+                if len(t) != 2 or sorted(t[1].upper()) != ["X", "Y", "Z"]:
+                    raise _fail(path, lineno, f"root axis must be a permutation of XYZ, found {' '.join(t[1:])[:40]!r}")
+                root["axis"] = t[1].upper()
+            elif key in ("position", "orientation"):
+                root[key] = _floats(path, lineno, t[1:], 3, key)
+            else:
+                raise _fail(path, lineno, f"unknown root field {t[0][:40]!r}; expected order, axis, position or orientation")
+        elif section == "bonedata":
+            if key == "begin":
+                if bone is not None:
+                    raise _fail(path, lineno, f"'begin' inside the bone of line {bone['line']}; expected 'end'")
+                if len(t) != 1:
+                    raise _fail(path, lineno, f"expected 'begin' alone on its line, found {line.strip()[:60]!r}")
+                bone = {"dof": (), "limits": [], "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ", "line": lineno}
+                last_field = None
+                continue
+            if bone is None:
+                raise _fail(path, lineno, f"{t[0][:40]!r} outside a bone's begin/end")
+            if key == "end":
+                if len(t) != 1:
+                    raise _fail(path, lineno, f"expected 'end' alone on its line, found {line.strip()[:60]!r}")
+                for field_ in ("name", "direction", "length"):
+                    if field_ not in bone:
+                        raise _fail(path, lineno, f"the bone of line {bone['line']} has no {field_!r}")
+                if bone["limits"] and len(bone["limits"]) != len(bone["dof"]):
+                    raise _fail(
+                        path, lineno,
+                        f"bone {bone['name']!r} has {len(bone['limits'])} limits for {len(bone['dof'])} dof",
+                    )
+                if bone["name"] in bones or bone["name"] == "root":
+                    raise _fail(path, bone["name_line"], f"bone name {bone['name']!r} is used twice")
                 bones[bone["name"]] = bone
                 bone = None
-            elif bone is None:
-                raise DataFileError(path, f"line {lineno}: {t[0]!r} outside a bone's begin/end")
-            elif t[0] == "id":
-                pass
-            elif t[0] == "name":
-                bone["name"] = t[1]
-                in_limits = False
-            elif t[0] == "direction":
-                d = np.array(_floats(path, lineno, t[1:], 3, "direction"))
-                nrm = np.linalg.norm(d)
-                bone["direction"] = d / nrm if nrm > 0 else d
-            elif t[0] == "length":
+                continue
+            if key.startswith("(") and last_field == "limits":  # a limits line continues
+                bone["limits"] += _limits(path, lineno, line.replace(",", " "))
+                continue
+            if key not in _BONE_FIELDS:
+                raise _fail(path, lineno, f"unknown bone field {t[0][:40]!r}; expected one of {', '.join(_BONE_FIELDS)}")
+            if key in bone and key not in ("dof", "limits", "axis"):
+                raise _fail(path, lineno, f"a second {key!r} in the bone of line {bone['line']}")
+            last_field = key
+            if key == "id":
+                if len(t) != 2:
+                    raise _fail(path, lineno, f"id needs one value, found {len(t) - 1}")
+                bone["id"] = t[1]
+            elif key == "name":
+                if len(t) != 2:
+                    raise _fail(path, lineno, f"name needs one word (the bone's name), found {len(t) - 1}")
+                bone["name"], bone["name_line"] = t[1], lineno
+            elif key == "direction":
+                bone["direction"] = np.array(_floats(path, lineno, t[1:], 3, "direction"))
+                nrm = np.linalg.norm(bone["direction"])
+                if nrm > 0:
+                    bone["direction"] = bone["direction"] / nrm
+            elif key == "length":
                 bone["length"] = _floats(path, lineno, t[1:], 1, "length")[0]
-            elif t[0] == "axis":
+                if bone["length"] < 0:
+                    raise _fail(path, lineno, f"length must be >= 0, found {bone['length']}")
+            elif key in ("bodymass", "cofmass"):
+                bone[key] = _floats(path, lineno, t[1:], 1, key)[0]
+            elif key == "axis":
                 if len(t) != 5 or sorted(t[4].upper()) != ["X", "Y", "Z"]:
-                    raise DataFileError(path, f"line {lineno}: bone axis must be 'axis ax ay az XYZ', found {t[1:]}")
+                    raise _fail(
+                        path, lineno, f"bone axis must be 'axis ax ay az XYZ', found {line.strip()[:60]!r}"
+                    )
                 bone["axis"] = _floats(path, lineno, t[1:4], 3, "axis")
                 bone["axis_order"] = t[4].upper()
-            elif t[0] == "dof":
+            elif key == "dof":
                 dof = tuple(x.lower() for x in t[1:])
                 bad = [x for x in dof if x not in _DOF_CHANNEL]
-                if bad:
-                    raise DataFileError(path, f"line {lineno}: dof {bad} not supported; expected rx ry rz tx ty tz")
+                if bad or not dof or len(set(dof)) != len(dof):
+                    raise _fail(path, lineno, f"dof {' '.join(t[1:])[:60]!r}; expected distinct rx ry rz tx ty tz")
                 bone["dof"] = dof
-            elif t[0] == "limits" or in_limits:
-                in_limits = True
-                body = line[len("limits"):] if t[0] == "limits" else line
-                body = body.replace("(", " ").replace(")", " ").split()
-                lo_hi = []
-                for x in body:
-                    if x.lower() in ("inf", "+inf", "-inf"):
-                        lo_hi.append(float(x.lower()))
-                    else:
-                        lo_hi += _floats(path, lineno, [x], 1, "limits")
-                if len(lo_hi) != 2:
-                    raise DataFileError(path, f"line {lineno}: a limit needs '(lo hi)', found {line!r}")
-                bone["limits"].append(tuple(lo_hi))
-            else:
-                raise DataFileError(path, f"line {lineno}: unknown bone field {t[0]!r}")
+            elif key == "limits":
+                body = line.replace(",", " ")
+                body = body[body.lower().index("limits") + len("limits") :]
+                bone["limits"] = _limits(path, lineno, body)
         elif section == "hierarchy":
-            if t[0] in ("begin", "end"):
-                continue
-            hierarchy.append((lineno, t[0], t[1:]))
+            if key == "begin" and len(t) == 1 and hier_state is None:
+                hier_state = "open"
+            elif key == "end" and len(t) == 1 and hier_state == "open":
+                hier_state = "closed"
+            elif hier_state != "open":
+                want = "'begin'" if hier_state is None else "the next section (':hierarchy' is closed)"
+                raise _fail(path, lineno, f"expected {want}, found {line.strip()[:60]!r}")
+            elif len(t) < 2:
+                raise _fail(path, lineno, f"a hierarchy line names a parent and its children, found {t[0][:40]!r}")
+            else:
+                hierarchy.append((lineno, t[0], t[1:]))
+    if bone is not None:
+        raise _fail(path, n_lines, f"file ends inside the bone of line {bone['line']}; expected 'end'")
+    if hier_state == "open":
+        raise _fail(path, n_lines, "file ends inside ':hierarchy'; expected 'end'")
     if root["order"] is None:
-        raise DataFileError(path, "no ':root' section with an 'order' line")
+        raise _fail(path, n_lines, "file ends without a ':root' section with an 'order' line")
     if not bones:
-        raise DataFileError(path, "no bones in ':bonedata'")
+        raise _fail(path, n_lines, "file ends without bones in ':bonedata'")
 
     parent_of = {}
     children = {"root": []}
+    placed_on = {}
     for lineno, p, kids in hierarchy:
         if p != "root" and p not in bones:
-            raise DataFileError(path, f"line {lineno}: hierarchy names unknown bone {p!r}")
+            raise _fail(path, lineno, f"hierarchy names unknown bone {p!r}")
         for c in kids:
             if c not in bones:
-                raise DataFileError(path, f"line {lineno}: hierarchy names unknown bone {c!r}")
+                raise _fail(path, lineno, f"hierarchy names unknown bone {c!r}")
             if c in parent_of:
-                raise DataFileError(path, f"line {lineno}: bone {c!r} has two parents")
+                raise _fail(path, lineno, f"bone {c!r} has two parents")
             parent_of[c] = p
+            placed_on[c] = lineno
             children.setdefault(p, []).append(c)
     missing = [b for b in bones if b not in parent_of]
     if missing:
-        raise DataFileError(path, f"bones not placed in ':hierarchy': {missing}")
+        raise _fail(path, bones[missing[0]]["line"], f"bone(s) {missing} not placed in ':hierarchy'")
+    reached, todo = set(), ["root"]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            reached.add(c)
+            todo.append(c)
+    loose = [b for b in bones if b not in reached]
+    if loose:
+        raise _fail(path, placed_on[loose[0]], f"bone(s) {loose} form a cycle, not a tree below root")
 
     angle_scale = 1.0 if units["angle"] == "deg" else 180.0 / np.pi
     names = ["root"]
@@ -214,6 +310,7 @@ def parse_asf(path):
     axes = [_order_matrix(root["axis"], np.array([root["orientation"]]) * angle_scale)[0]]
     end_site = [False]
     limits = {}
+    masses = {}
 
     def visit(name, parent_index):
         b = bones[name]
@@ -225,6 +322,7 @@ def parse_asf(path):
         axes.append(_order_matrix(b["axis_order"], np.array([b["axis"]]) * angle_scale)[0])
         end_site.append(False)
         limits[name] = list(b["limits"])
+        masses[name] = {k: b[k] for k in ("bodymass", "cofmass") if k in b}
         me = len(names) - 1
         kids = children.get(name, [])
         for c in kids:
@@ -241,7 +339,7 @@ def parse_asf(path):
         visit(c, 0)
     skel = Skeleton(names, parents, offsets, channels, end_site)
     return ASFSkeleton(
-        skel, np.array(axes), root["order"], units["length"], units["angle"], limits, str(path)
+        skel, np.array(axes), root["order"], units["length"], units["angle"], limits, str(path), masses
     )
 
 
@@ -271,13 +369,15 @@ class AMCData:
 def parse_amc(path, asf, frame_time=1.0 / 120.0):
     """Read an AMC motion file for the skeleton ``asf`` (an :class:`ASFSkeleton` or a path to an ASF file).
 
-    Every frame must give every bone that has dof, with exactly that many values. Errors name the file and line.
+    Accepts the same text forms as :func:`parse_asf` (BOM, any line end, tabs, commas as white space, keywords
+    ``:FULLY-SPECIFIED``, ``:DEGREES``, ``:RADIANS`` in any letter case). Frames are numbered consecutively;
+    every frame must give every bone that has dof, once, with exactly that many values.
+    Raises :class:`~bsrbench.errors.DataFileError` naming the file and the line (``.line``) otherwise.
     """
     if not isinstance(asf, ASFSkeleton):
         asf = parse_asf(asf)
     path = Path(path)
-    if not path.is_file():
-        raise DataFileError(path, "file not found (expected an AMC motion file)")
+    lines = read_lines(path, "an AMC motion file")
     skel = asf.skeleton
     starts = skel.channel_starts()
     index = {n: j for j, n in enumerate(skel.joint_names) if skel.channels[j]}
@@ -287,64 +387,63 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
     current = None
     seen = set()
     frame_line = 0
-    expected_id = None
+    frame_id = None
 
     def close(lineno):
         missing = [n for n in index if n not in seen]
         if missing:
-            raise DataFileError(path, f"line {lineno}: frame {expected_id - 1} lacks bones {missing}")
+            raise _fail(path, lineno, f"frame {frame_id} lacks bones {missing} (frame of line {frame_line})")
 
-    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
     for k, raw in enumerate(lines):
         lineno = k + 1
-        line = raw.split("#", 1)[0].strip()
-        if not line:
+        t = tokens(raw.split("#", 1)[0], commas=True)
+        if not t:
             continue
-        if line.startswith(":"):
-            word = line[1:].upper()
-            if word == "DEGREES":
-                degrees = True
-            elif word == "RADIANS":
-                degrees = False
+        if t[0].startswith(":"):
+            word = t[0][1:].upper()
+            if word not in ("FULLY-SPECIFIED", "DEGREES", "RADIANS") or len(t) != 1:
+                raise _fail(
+                    path, lineno, f"unexpected {' '.join(t)[:40]!r}; expected :FULLY-SPECIFIED, :DEGREES or :RADIANS"
+                )
+            if current is not None:
+                raise _fail(path, lineno, f"{t[0]} after the first frame; expected it before line {frame_line}")
+            if word != "FULLY-SPECIFIED":
+                degrees = word == "DEGREES"
             continue
-        t = line.split()
-        if len(t) == 1 and t[0].isdigit():
+        if len(t) == 1 and is_whole(t[0]):
+            fid = int(t[0])
             if current is not None:
                 close(lineno)
                 frames.append(current)
-            fid = int(t[0])
-            if expected_id is not None and fid != expected_id:
-                raise DataFileError(path, f"line {lineno}: frame number {fid}; expected {expected_id}")
-            expected_id = fid + 1
+                if fid != frame_id + 1:
+                    raise _fail(path, lineno, f"frame number {fid}; expected {frame_id + 1}")
+            frame_id = fid
             current = np.full(n_ch, np.nan)
             seen = set()
             frame_line = lineno
             continue
         if current is None:
-            raise DataFileError(path, f"line {lineno}: bone values before the first frame number")
+            raise _fail(path, lineno, f"expected a frame number before {t[0][:40]!r}")
         name = t[0]
         if name not in index:
-            raise DataFileError(path, f"line {lineno}: bone {name!r} is not a bone with dof in {asf.path}")
+            raise _fail(path, lineno, f"bone {name[:40]!r} is not a bone with dof in {asf.path}")
         j = index[name]
         nd = len(skel.channels[j])
         if len(t) - 1 != nd:
-            raise DataFileError(path, f"line {lineno}: bone {name!r} has {len(t) - 1} values; expected {nd}")
+            raise _fail(path, lineno, f"bone {name!r} has {len(t) - 1} values; expected {nd}")
         vals = _floats(path, lineno, t[1:], nd, f"bone {name!r}")
         if name in seen:
-            raise DataFileError(path, f"line {lineno}: bone {name!r} given twice in the frame of line {frame_line}")
+            raise _fail(path, lineno, f"bone {name!r} given twice in the frame of line {frame_line}")
         seen.add(name)
         current[starts[j] : starts[j] + nd] = vals
     if current is None:
-        raise DataFileError(path, "no frames in AMC file")
+        raise _fail(path, max(len(lines), 1), "file ends without a frame (expected a frame number, then bone lines)")
     close(len(lines))
     frames.append(current)
     motion = np.array(frames)
     if not degrees:
         rot = np.array([ch.endswith("rotation") for chans in skel.channels for ch in chans])
         motion[:, rot] = np.rad2deg(motion[:, rot])
-    if not np.all(np.isfinite(motion)):
-        r, c = np.argwhere(~np.isfinite(motion))[0]
-        raise DataFileError(path, f"frame {r}, value {c + 1} is not finite")
     return AMCData(asf, motion, float(frame_time), str(path))
 
 

@@ -316,10 +316,19 @@ def setup_text(df, *, labels):
     ]
 
 
-def write_generated(path, df, paper, *, labels, defaults=None):
-    """The LaTeX fragment with the setup (and parameter table) and the findings (input by reports/report.tex)."""
-    body = ["% generated from results/aggregate/results.csv", r"\section{Setup}", ""]
-    body += [" ".join(setup_text(df, labels=labels)), ""]
+def write_generated(path, df, paper, *, labels, defaults=None, study=None):
+    """The LaTeX fragment with the setup (and parameter table) and the findings (input by reports/report.tex).
+
+    ``study``: (name, results folder) of the study shown, named first in the setup; None leaves it out.
+    """
+    body = ["% generated from the study's aggregate table", r"\section{Setup}", ""]
+    lines = setup_text(df, labels=labels)
+    if study is not None:
+        name, folder = study
+        lines.insert(0, f"Study: \\textbf{{{latex_escape(name)}}} (configuration key \\texttt{{study}}; results in "
+                        f"\\texttt{{{latex_escape(folder)}/}}, aggregate table "
+                        f"\\texttt{{{latex_escape(folder)}/aggregate/results.csv}}).")
+    body += [" ".join(lines), ""]
     body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
     body += [r"\section{Findings}", r"\begin{itemize}"]
     body += [r"\item " + f for f in findings(df, paper, labels=labels)]

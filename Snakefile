@@ -1,0 +1,72 @@
+# bsrbench: Bayesian sparse-representation pose estimation, reproduced and benchmarked.
+# Entry only: configuration, validation, rule modules, and the default target.
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
+configfile: "config/datasets.yaml"
+configfile: "config/config.yaml"
+
+
+# `--config key='[...]'` and `key='{...}'` read as YAML, as in the configuration files (Snakemake keeps the
+# scalars inside them strings); before any validation.
+from bsrbench.cli_config import retype_cli_config
+
+retype_cli_config(config, workflow.config_settings.config_args, workflow.config_settings.config)
+
+
+include: "workflow/rules/datasets.smk"
+include: "workflow/rules/common.smk"
+include: "workflow/rules/mocap.smk"
+include: "workflow/rules/features.smk"
+include: "workflow/rules/fit.smk"
+include: "workflow/rules/aggregate.smk"
+include: "workflow/rules/report.smk"
+
+
+# The job server (config key job_server) stops when this run ends and removes its files; its jobs carry this
+# process's pid so that it also stops if the run is killed (bsrbench.jobserver). Job processes inherit the
+# variable, so it names the main Snakemake process.
+import os
+
+from bsrbench import jobserver
+
+os.environ.setdefault(jobserver.OWNER_VAR, str(os.getpid()))
+
+
+onsuccess:
+    jobserver.shutdown()
+
+
+onerror:
+    jobserver.shutdown()
+
+
+rule all:
+    input:
+        feature_targets(),
+        study_targets(),
+    default_target: True
+
+
+# Under a cluster executor (profiles/slurm) these run on the submit host instead of as cluster jobs: they take
+# seconds (the aggregate table, tables, plots, the poses of a few trials, the check of a .mat file), need TeX
+# (report_pdf) or the network (downloads). The fit, CV and feature-rendering jobs are submitted.
+localrules:
+    all,
+    aggregate,
+    table,
+    report_text,
+    plot_error_vs_ntrain,
+    plot_calibration,
+    plot_trace,
+    plot_gxy,
+    plot_subjective,
+    report_why_pm,
+    pool_chains,
+    report_pdf,
+    download_cmu_asf,
+    download_cmu_amc,
+    features_mat,
+    mocap_poses,
