@@ -8,7 +8,7 @@ interpolated linearly; variants this BayesianSR does not know yet are costed as 
 and sweeps). The estimate is the sum over the ablation's chain jobs (chains x activities x seeds per variant
 and N, the counts of ``snakemake -n``) of these CPU seconds, divided by the cores; scheduling, the pool jobs,
 the baselines and their CV come on top (the script prints the baselines' measured fit and CV times when a
-slice of the workflow has been run, from results/fit/.../seed100.json and results/cv/.../seed100.json).
+slice of the workflow has been run, from results/ablation/fit/.../seed100.json and results/ablation/cv/.../seed100.json).
 
     snakemake --cores 1 results/features/hsc/golf.npz     # the features, once
     .venv/bin/python benchmarks/bench_ablation_cost.py [--cores 2] [--activity golf]
@@ -71,10 +71,11 @@ def main():
             jobs += chains * n_act * n_seeds
     print(f"\n{jobs} chain jobs, {total / 3600:.1f} CPU hours: {total / 3600 / args.cores:.1f} h wall on "
           f"{args.cores} cores (chain jobs only)")
+    res = ROOT / "results" / cfg.get("study", "ablation")
     for m in [m for m in cfg["run"] if m not in variants]:
         for n in sizes:
-            f = ROOT / "results" / "fit" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
-            c = ROOT / "results" / "cv" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
+            f = res / "fit" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
+            c = res / "cv" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
             if f.is_file():
                 row = json.loads(f.read_text())
                 cv = json.loads(c.read_text())["cv_seconds"] if c.is_file() else None

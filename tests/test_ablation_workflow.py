@@ -15,24 +15,14 @@ import pytest
 from bsrbench.reporting.published import main as published_main
 from bsrbench.study import chain_seed
 
-from test_workflow import ROOT, smk
+from test_workflow import ROOT, copy_tree, smk
 
 ABLATION = ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")
 
 
-def _copy_tree(work):
-    """The workflow and configs in ``work`` (resources linked), so that no result of the working tree counts."""
-    for name in ("workflow", "config"):
-        shutil.copytree(ROOT / name, work / name)
-    (work / "reports").mkdir()
-    shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
-    (work / "resources").symlink_to(ROOT / "resources")
-    return work
-
-
 @pytest.mark.slow  # a DAG of 6,230 jobs: about a minute on an idle machine
 def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
-    res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", cwd=_copy_tree(tmp_path))
+    res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", cwd=copy_tree(tmp_path))
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
@@ -46,7 +36,7 @@ def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
 
 @pytest.fixture(scope="module")
 def ablation_run(tmp_path_factory):
-    work = _copy_tree(tmp_path_factory.mktemp("ablation"))
+    work = copy_tree(tmp_path_factory.mktemp("ablation"))
     res = smk("reports/report.pdf", "--cores", "2", *ABLATION, cwd=work, timeout=900)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work

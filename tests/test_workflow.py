@@ -78,16 +78,22 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
     assert re.search(message, res.stdout + res.stderr), res.stdout[-2000:] + res.stderr[-2000:]
 
 
-@pytest.fixture(scope="module")
-def ci_run(tmp_path_factory):
-    """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
-    work = tmp_path_factory.mktemp("study")
+def copy_tree(work):
+    """The workflow, profiles and configs in ``work`` (resources linked, not copied), so that no result of the
+    working tree counts."""
     for name in ("Snakefile", "workflow", "profiles", "config"):
         src = ROOT / name
         (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
     (work / "reports").mkdir()
     shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
     (work / "resources").symlink_to(ROOT / "resources")
+    return work
+
+
+@pytest.fixture(scope="module")
+def ci_run(tmp_path_factory):
+    """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
+    work = copy_tree(tmp_path_factory.mktemp("study"))
     res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=900)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work

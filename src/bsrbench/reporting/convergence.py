@@ -277,7 +277,7 @@ def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1")
 
     ``figures``: list of (path relative to reports/, caption).
     """
-    lines = ["% generated from results/aggregate/results.csv", r"\section{Why PM trails the paper here}", ""]
+    lines = ["% generated from the study's aggregate table", r"\section{Why PM trails the paper here}", ""]
     lines.append(
         r"The paper's PM is a Gibbs sampler; its numbers carry weight only if the chains have converged. Every PM "
         r"variant below is a method of its own (\texttt{config/ablation.yaml}); with several chains per split the "

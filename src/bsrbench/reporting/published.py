@@ -2,10 +2,10 @@
 
 ``reports/published/paper.csv`` (the paper protocol, ``config/paper.yaml``) and ``reports/published/ablation.csv``
 (``config/ablation.yaml``) are copies of the aggregate table of those runs: one row per fit job, the columns of
-``results/aggregate/results.csv`` including the convergence columns (NaN where not computed). They are committed,
+``results/{study}/aggregate/results.csv`` including the convergence columns (NaN where not computed). They are committed,
 so that anyone can regenerate and check the README's tables without rerunning the study::
 
-    python -m bsrbench.reporting.published publish results/aggregate/results.csv reports/published/paper.csv
+    python -m bsrbench.reporting.published publish results/paper/aggregate/results.csv reports/published/paper.csv
     python -m bsrbench.reporting.published readme reports/published/paper.csv --update README.md
 
 ``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it.

@@ -1,6 +1,6 @@
 """The aggregate result table and the LaTeX tables in the layout of the paper's Tables I and II.
 
-Every table, plot and finding is computed from the aggregate table (``results/aggregate/results.csv``, one
+Every table, plot and finding is computed from the aggregate table (``results/{study}/aggregate/results.csv``, one
 row per fit job, built by :func:`aggregate_rows`). Tables contain no timings, so two runs of the same
 configuration give identical tables.
 """
@@ -102,7 +102,7 @@ def read_results(path, design=None):
     return df
 
 
-def check_design(df, design, *, path="results/aggregate/results.csv"):
+def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
     """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
 
     The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
@@ -139,7 +139,7 @@ def check_design(df, design, *, path="results/aggregate/results.csv"):
         path,
         f"does not match the configuration: {len(wanted - have)} configured job(s) without a row, "
         f"{len(have - wanted)} row(s) of jobs not configured; " + "; ".join(differ)
-        + ". Expected exactly the configured study; rebuild it (snakemake results/aggregate/results.csv)",
+        + f". Expected exactly the configured study; rebuild it (snakemake {path})",
     )
 
 
@@ -248,7 +248,7 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     sizes = sorted(int(n) for n in n_train)
     s = summary[summary["source"] == source]
     p = paper[paper["table"] == table]
-    out = [f"% Table {table} of the paper on data source {source!r}; generated from results/aggregate/results.csv"]
+    out = [f"% Table {table} of the paper on data source {source!r}; generated from the study's aggregate table"]
     for protocol in protocols:
         sp = s[s["protocol"] == protocol]
         caption = (
@@ -313,7 +313,11 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                 ]
                 out.append(_row([r"\emph{\quad paper}", ""] + cells))
         out += [r"\bottomrule", r"\end{tabular}"]
-        shown = [a for pa in PAPER_TABLES[table] for a in [status.get(pa)] if a in frames and a in set(sp["activity"])]
+        studied = set(sp["activity"])  # status: {paper activity: studied activity, or a dict saying why none}
+        shown = [
+            a for pa in PAPER_TABLES[table] for a in [status.get(pa)]
+            if isinstance(a, str) and a in frames and a in studied
+        ]
         if shown:
             text = "; ".join(f"{a}: {frames[a]}" for a in shown)
             out.append(r"\par\smallskip{\scriptsize Frames. " + latex_escape(text) + ".}")
