@@ -43,7 +43,7 @@ def ablation_run(tmp_path_factory):
 
 
 def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
-    df = pd.read_csv(ablation_run / "results" / "aggregate" / "results.csv")
+    df = pd.read_csv(ablation_run / "results" / "ablation-ci" / "aggregate" / "results.csv")
     assert len(df) == 5 and set(df["seed"]) == {100}
     pm = df[df["method"].isin(["PM", "PMK16", "PMj3"])]
     assert (pm["n_chains"] == 2).all()
@@ -74,7 +74,7 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
 
 
 def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_path):
-    agg = ablation_run / "results" / "aggregate" / "results.csv"
+    agg = ablation_run / "results" / "ablation-ci" / "aggregate" / "results.csv"
     dest = tmp_path / "published" / "ablation.csv"
     assert published_main(["publish", str(agg), str(dest)]) == 0
     pub = pd.read_csv(dest)

@@ -22,6 +22,7 @@ OVERRIDES = {
     "run": "run=[PM, Ridge]",
     "methods.*.grid.*": "methods={Ridge: {grid: {alpha: [0.5, 2.0, 1e-1, 10]}}, PM: {params: {n_atoms: 16}}}",
     "report.subjective_methods": "report={subjective_methods: [PM, SR], trace_method: null}",
+    "report.gxy_methods": "report={gxy_methods: [PM]}",
     "datasets.*.*.files": "datasets={hsc: {golf: {files: [resources/paper-features/golf.mat]}}}",
     "datasets.*.*.cmu_trials": "datasets={mocap_cmu: {kick: {cmu_trials: ['10_01', '10_02'], format: amc}}}",
     "datasets.*.*.joint_map": "datasets={mocap: {walk: {joint_map: [Hips, LeftUpLeg, 3]}}}",

@@ -107,12 +107,12 @@ def test_method_settings_accept_the_shipped_configurations_and_report_defaults()
     root = Path(__file__).resolve().parents[1]
     base = yaml.safe_load((root / "config" / "config.yaml").read_text())
     check_method_settings(base["methods"], base["run"])  # default grids included
-    for name in ("paper.yaml", "ci.yaml"):
+    for name in ("paper.yaml", "ci.yaml", "ablation.yaml"):
         over = yaml.safe_load((root / "config" / name).read_text())
         methods = {m: {**base["methods"].get(m, {}), **s} for m, s in over["methods"].items()}
         check_method_settings({**base["methods"], **methods}, over.get("run", base["run"]))
     d = estimator_defaults(f"{REF}:RidgeRegressor")
-    assert d == {"alpha": 1.0, "standardize": True}
+    assert d == {"alpha": 1.0, "standardize": True, "input_scaling": "pooled"}
 
 
 def test_inverse_std_of_heading_matches_monte_carlo():

@@ -193,6 +193,7 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
     ran_local = set(re.findall(r"^localrule (\w+):", out, re.M))
     submitted = set(re.findall(r"^rule (\w+):", out, re.M))
     assert ran_local == {"aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration", "plot_trace",
+                         "report_why_pm",
                          "plot_subjective", "report_pdf", "features_mat", "mocap_poses"}
     assert submitted == set()  # and the fits and CV of the local run were not rerun: where they ran is no param
     assert (ci_run / "reports" / "report.pdf").read_bytes()[:5] == b"%PDF-"
