@@ -298,12 +298,16 @@ def subjective_methods():
     return [m for m in config["report"]["subjective_methods"] if m in run_methods()]
 
 
-def drawn_as_sticks(source):
-    """True if the subjective figure of ``source`` shows stick figures (every studied activity is a BVH motion)."""
-    acts = config["study_activities"].get(source) or []
-    return bool(acts) and all(
-        is_motion(source, a) and all(str(f).endswith(".bvh") for f in dataset(source, a)["files"]) for a in acts
-    )
+def stick_kind(source, activity):
+    """How the subjective figure draws an activity's poses: "bvh" (a BVH motion: silhouette and stick figures of
+    the trial's skeleton), "authors" (features file in the authors' skeleton convention: input histogram and
+    stick figures of their skeleton) or None (angle profiles)."""
+    entry = dataset(source, activity)
+    if is_motion(source, activity) and all(str(f).endswith(".bvh") for f in entry["files"]):
+        return "bvh"
+    if entry.get("skeleton") == "authors":
+        return "authors"
+    return None
 
 
 def subjective_inputs(wildcards):

@@ -46,7 +46,9 @@ rule report_text:
         tables=table_targets(),
         figures=figure_targets("pdf"),
         status={s: data_status(s) for s in report_sources()},
-        stick_sources=[s for s in report_sources() if drawn_as_sticks(s)],
+        stick_kinds={
+            s: sorted({str(stick_kind(s, a)) for a in config["study_activities"][s]}) for s in report_sources()
+        },
         subjective_first=next(iter(subjective_methods()), ""),
     threads: 1
     conda:
@@ -200,6 +202,7 @@ rule plot_subjective:
         },
         labels=method_labels(),
         motion=subjective_motion,
+        sticks=lambda w: {a: stick_kind(w.source, a) for a in config["study_activities"][w.source]},
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

@@ -1,8 +1,10 @@
 """Snakemake adapter of rule plot_subjective: one test frame per activity, true and predicted poses.
 
 Motion-capture sources (BVH trials) get the paper's Fig. 2 layout: the rendered silhouette and 3-D stick
-figures of the true and predicted poses (forward kinematics of the trial's skeleton). Sources with joint
-angles only (the precomputed hsc features) get the input histogram and angle profiles.
+figures of the true and predicted poses (forward kinematics of the trial's skeleton). Features files in the
+authors' skeleton convention (the hsc source, data set key `skeleton: authors`) get the input histogram and
+stick figures of the authors' 19-joint skeleton (bsrbench.authors.hsc_stick_figure). Other sources with joint
+angles only get the input histogram and angle profiles.
 """
 
 import sys
@@ -46,16 +48,29 @@ for i, activity in enumerate(activities):
     items.append((activity, dict(sm.params.labels_activity)[activity], load_features(sm.input.features[i]), preds))
 panels = subjective_panels(items, methods, frame_errors)
 
-sticks = bool(panels) and all(
-    a in motion and all(str(f).endswith(".bvh") for f in motion[a]["files"]) for a in activities
-)
-if sticks:
+kinds = dict(sm.params.sticks)
+if panels and all(kinds.get(a) for a in activities):
+    from bsrbench.authors import hsc_stick_figure
     from bsrbench.mocap import parse_bvh
     from bsrbench.render import render_silhouettes
 
     stick_panels = []
     for pnl in panels:
         a = pnl["activity"]
+        if kinds[a] == "authors":
+            true, parents = hsc_stick_figure(pnl["y_true"])
+            stick_panels.append(
+                {
+                    "label": pnl["label"],
+                    "frame": pnl["frame"],
+                    "x": pnl["x"],
+                    "parents": parents,
+                    "true": true,
+                    "preds": {m: hsc_stick_figure(y)[0] for m, y in pnl["preds"].items()},
+                    "errors": pnl["errors"],
+                }
+            )
+            continue
         with np.load(motion[a]["poses"]) as f:
             mo = {k: f[k] for k in f.files}
         # the features file's rows are the poses file's rows

@@ -27,7 +27,18 @@ def caption(kind, source):
             "that their error bars do not overlap. Filled markers, solid lines: this study; open markers, "
             "dotted lines: the paper's Tables I and II at the same $N$."
         )
-    if kind == "subjective" and source in sm.params.stick_sources:
+    kinds = dict(sm.params.stick_kinds).get(source, [])
+    if kind == "subjective" and kinds == ["authors"]:
+        return (
+            f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
+            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). These "
+            "precomputed features come without images, so the first panel shows the input shape-context "
+            "histogram; then the true pose and each method's predicted pose (in colour, over the true pose in "
+            "grey) as 3-D stick figures of the authors' 19-joint skeleton from one oblique viewpoint (their "
+            "angle convention, reconstructed in resources/paper-features/README.md); in brackets the method's "
+            "error on this frame."
+        )
+    if kind == "subjective" and "None" not in kinds:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
             f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). From the "
@@ -38,9 +49,9 @@ def caption(kind, source):
     if kind == "subjective":
         return (
             f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed 0; "
-            f"the test frame with the median error of {first}). These precomputed features come with joint "
-            "angles only, in a skeleton convention that is not documented, so no stick figure can be drawn: "
-            "left the input shape-context histogram, right the 57 true and predicted joint angles; in brackets "
+            f"the test frame with the median error of {first}). These features come with joint angles in a "
+            "skeleton convention that is not configured (data set key skeleton), so no stick figure is drawn: "
+            "left the input shape-context histogram, right the true and predicted joint angles; in brackets "
             "each method's error on this frame."
         )
     if kind == "calibration":

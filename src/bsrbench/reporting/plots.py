@@ -291,10 +291,11 @@ def _stick(ax, xy, parents, color, lw=1.4):
 def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
     """The paper's Fig. 2 layout: silhouette, true pose and each method's pose as stick figures.
 
-    ``panels``: dicts with ``label``, ``frame``, ``silhouette`` (H, W bool), ``parents``, ``true`` (J, 3),
-    ``preds`` ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}). Every 3-D pose is
-    drawn from the same oblique viewpoint (:func:`oblique_projection`) at the same scale within a row; each
-    prediction is drawn over the true pose in light grey.
+    ``panels``: dicts with ``label``, ``frame``, ``silhouette`` (H, W bool) or, for features without images,
+    ``x`` (the input feature vector, drawn as a histogram), ``parents``, ``true`` (J, 3), ``preds``
+    ({method: (J, 3)}), ``errors`` ({method: error on this frame, degrees}). Every 3-D pose is drawn from the
+    same oblique viewpoint (:func:`oblique_projection`) at the same scale within a row; each prediction is
+    drawn over the true pose in light grey.
     """
     n = max(1, len(panels))
     ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
@@ -302,14 +303,23 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
     fig, axes = plt.subplots(n, ncol, figsize=(TEXT_WIDTH, row_h * n), squeeze=False, layout="constrained")
     for axrow, pnl in zip(axes, panels):
         ax = axrow[0]
-        sil = np.asarray(pnl["silhouette"], dtype=bool)
-        rows, cols = np.nonzero(sil)
-        if rows.size:  # crop to the silhouette, with a margin
-            m = max(2, int(0.05 * sil.shape[0]))
-            sil = sil[max(rows.min() - m, 0) : rows.max() + m + 1, max(cols.min() - m, 0) : cols.max() + m + 1]
-        ax.imshow(sil, cmap="gray_r", interpolation="nearest")
-        ax.set_axis_off()
-        ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input silhouette")
+        if pnl.get("silhouette") is None:
+            x = np.asarray(pnl["x"], dtype=float)
+            ax.bar(np.arange(x.size), x, width=1.0, color="0.3")
+            ax.set_xlabel("histogram bin")
+            ax.set_yticks([])
+            for side in ("top", "right", "left"):
+                ax.spines[side].set_visible(False)
+            ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram")
+        else:
+            sil = np.asarray(pnl["silhouette"], dtype=bool)
+            rows, cols = np.nonzero(sil)
+            if rows.size:  # crop to the silhouette, with a margin
+                m = max(2, int(0.05 * sil.shape[0]))
+                sil = sil[max(rows.min() - m, 0) : rows.max() + m + 1, max(cols.min() - m, 0) : cols.max() + m + 1]
+            ax.imshow(sil, cmap="gray_r", interpolation="nearest")
+            ax.set_axis_off()
+            ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input silhouette")
         view = {k: oblique_projection(v, elev=elev, azim=azim) for k, v in
                 [("true", pnl["true"])] + list(pnl["preds"].items())}
         allxy = np.concatenate(list(view.values()))
