@@ -305,7 +305,7 @@ def stick_kind(source, activity):
     entry = dataset(source, activity)
     if is_motion(source, activity) and all(str(f).endswith(".bvh") for f in entry["files"]):
         return "bvh"
-    if entry.get("skeleton") == "authors":
+    if entry.get("pose_convention") == "authors":
         return "authors"
     return None
 

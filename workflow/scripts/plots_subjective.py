@@ -2,9 +2,9 @@
 
 Motion-capture sources (BVH trials) get the paper's Fig. 2 layout: the rendered silhouette and 3-D stick
 figures of the true and predicted poses (forward kinematics of the trial's skeleton). Features files in the
-authors' skeleton convention (the hsc source, data set key `skeleton: authors`) get the input histogram and
-stick figures of the authors' 19-joint skeleton (bsrbench.authors.hsc_stick_figure). Other sources with joint
-angles only get the input histogram and angle profiles.
+authors' skeleton convention (the hsc source, data set key `pose_convention: authors`) get the input histogram
+and stick figures of the authors' 19-joint skeleton (bsrbench.authors.hsc_stick_figure). Other sources with
+joint angles only get the input histogram and angle profiles.
 """
 
 import sys

@@ -50,7 +50,7 @@ def caption(kind, source):
         return (
             f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed 0; "
             f"the test frame with the median error of {first}). These features come with joint angles in a "
-            "skeleton convention that is not configured (data set key skeleton), so no stick figure is drawn: "
+            "skeleton convention that is not configured (data set key pose\_convention), so no stick figure is drawn: "
             "left the input shape-context histogram, right the true and predicted joint angles; in brackets "
             "each method's error on this frame."
         )
