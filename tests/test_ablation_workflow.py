@@ -53,7 +53,7 @@ def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
     row = pm[pm["method"] == "PM"].iloc[0]
     seeds = json.loads(row["chain_seeds"])
     assert seeds == [chain_seed(int(row["method_seed"]), c) for c in range(2)]
-    d = ablation_run / "results" / "fit" / "contiguous" / "hsc" / "golf" / "PM" / "n30"
+    d = ablation_run / "results" / "ablation-ci" / "fit" / "contiguous" / "hsc" / "golf" / "PM" / "n30"
     chains = [np.load(d / "seed100" / f"chain{c}.npz") for c in range(2)]
     pooled = np.load(d / "seed100.npz")
     np.testing.assert_array_equal(pooled["chain_trace_g_xy"][1], chains[1]["trace_g_xy"])

@@ -80,7 +80,7 @@ def convergence_latex(df, *, labels):
     d = df[df["n_chains"].fillna(1) > 1]
     if d.empty:
         return (r"\noindent No method was run with several chains, so no R-hat was computed "
-                r"(set \texttt{methods.<M>.chains} $\geq 2$, e.g.\ \texttt{config/ablation.yaml}).")
+                r"(set \nolinkurl{methods.<M>.chains} $\geq 2$, e.g.\ \nolinkurl{config/ablation.yaml}).")
     out = []
     for (protocol, n_train), dp in d.groupby(["protocol", "n_train"], sort=True):
         acts = ", ".join(sorted(set(dp["activity"])))

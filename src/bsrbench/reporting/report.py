@@ -325,9 +325,10 @@ def write_generated(path, df, paper, *, labels, defaults=None, study=None):
     lines = setup_text(df, labels=labels)
     if study is not None:
         name, folder = study
+        # \nolinkurl (hyperref's url) breaks paths at slashes, which \texttt cannot
         lines.insert(0, f"Study: \\textbf{{{latex_escape(name)}}} (configuration key \\texttt{{study}}; results in "
-                        f"\\texttt{{{latex_escape(folder)}/}}, aggregate table "
-                        f"\\texttt{{{latex_escape(folder)}/aggregate/results.csv}}).")
+                        f"\\nolinkurl{{{folder}/}}, aggregate table "
+                        f"\\nolinkurl{{{folder}/aggregate/results.csv}}).")
     body += [" ".join(lines), ""]
     body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
     body += [r"\section{Findings}", r"\begin{itemize}"]
