@@ -320,17 +320,17 @@ def chain_traces(arrays):
 
 
 def _log_axis(ax):
-    """A log y axis; plain labels on the minor ticks when the trace spans less than a decade."""
-    from matplotlib.ticker import FuncFormatter, NullFormatter
+    """A log y axis with plain tick labels (no superscripts, which print below 7 pt): every minor tick labelled
+    when the trace spans less than a decade, else only 2, 3 and 5 times a power of ten."""
+    from matplotlib.ticker import FormatStrFormatter, FuncFormatter
+
+    from .plots import _minor_log_label
 
     ax.set_yscale("log")
     lo, hi = ax.get_ylim()
-    if hi / lo < 10:  # at most one decade tick inside: label the minor ticks, plainly
-        fmt = FuncFormatter(lambda v, _: f"{v:.3g}")
-        ax.yaxis.set_major_formatter(fmt)
-        ax.yaxis.set_minor_formatter(fmt)
-    else:
-        ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    every = hi / lo < 10
+    ax.yaxis.set_minor_formatter(FuncFormatter((lambda v, _pos=None: f"{v:.3g}") if every else _minor_log_label))
 
 
 def _informative(a):
@@ -357,7 +357,9 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
     n = max(1, len(names))
     ncols = 2 if n > 1 else 1
     nrows = math.ceil(n / ncols)
-    fig = plt.figure(figsize=(7.2, 1.75 * nrows + 0.5))
+    from .plots import TEXT_WIDTH
+
+    fig = plt.figure(figsize=(TEXT_WIDTH, 1.75 * nrows + 0.5))
     gs = fig.add_gridspec(nrows, ncols)
     n_chains = max((a.shape[0] for a in tr.values()), default=0)
     for i, name in enumerate(names):
@@ -381,7 +383,7 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
             ax.set_title(TRACE_LABELS.get(name, name.replace("_", " ")))
         ax.grid(alpha=0.3)
     if n_chains > 1 and names:
-        fig.axes[0].legend(fontsize=6, ncol=min(n_chains, 4), loc="best")
+        fig.axes[0].legend(fontsize=7, ncol=min(n_chains, 4), loc="best")
     if not names:
         ax = fig.add_subplot(gs[0, 0])
         ax.text(0.5, 0.5, "the fit saved no trace", ha="center", va="center")
@@ -401,7 +403,9 @@ def plot_gxy(items, *, n_burn_in=None):
     import matplotlib.pyplot as plt
 
     n = max(1, len(items))
-    fig, axes = plt.subplots(1, n, figsize=(2.5 * n + 0.8, 2.6), squeeze=False, sharey=True)
+    from .plots import TEXT_WIDTH
+
+    fig, axes = plt.subplots(1, n, figsize=(min(TEXT_WIDTH, 2.5 * n + 0.8), 2.6), squeeze=False, sharey=True)
     for ax, (title, arrays) in zip(axes[0], items):
         tr = chain_traces(arrays).get("g_xy")
         burn = n_burn_in if n_burn_in is not None else int(arrays.get("n_burn_in", 0))
