@@ -260,3 +260,35 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
         if ticks and fig is figs[0]:
             assert ticks == [30.0, 100.0]  # only the sizes studied
         plt.close(fig)
+
+
+def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
+    """Features without images (the hsc source) get the input histogram in the silhouette's place, and the
+    true and predicted poses as stick figures of the authors' skeleton, drawn at the same scale in a row."""
+    import matplotlib.pyplot as plt
+    from matplotlib.container import BarContainer
+
+    from bsrbench.authors import hsc_stick_figure
+    from bsrbench.reporting.plots import MIN_FONT_PT, TEXT_WIDTH, plot_subjective_sticks
+
+    rng = np.random.default_rng(0)
+    y_true = rng.uniform(-40, 40, 57)
+    y_pred = y_true + rng.normal(0, 5, 57)
+    true, parents = hsc_stick_figure(y_true)
+    pnl = {"label": "Golf", "frame": 7, "x": rng.random(100), "parents": parents, "true": true,
+           "preds": {"PM": hsc_stick_figure(y_pred)[0]}, "errors": {"PM": 4.2}}
+    fig = plot_subjective_sticks([pnl], labels=LABELS)
+    hist, true_ax, pred_ax = fig.axes[:3]
+    bars = [c for c in hist.containers if isinstance(c, BarContainer)]
+    assert len(bars) == 1 and len(bars[0]) == 100
+    assert "input histogram" in hist.get_title() and "test frame 7" in hist.get_title()
+    assert true_ax.get_title() == "true pose" and pred_ax.get_title() == "PM (4.2 deg)"
+    # one line per bone: the true pose alone, the prediction over the true pose in grey
+    n_bones = int((parents >= 0).sum())
+    assert len(true_ax.lines) == n_bones and len(pred_ax.lines) == 2 * n_bones
+    assert true_ax.get_xlim() == pred_ax.get_xlim()
+    fig.canvas.draw()
+    assert fig.get_tightbbox(fig.canvas.get_renderer()).width <= TEXT_WIDTH + 0.01
+    sizes = [t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()]
+    assert min(sizes) >= MIN_FONT_PT
+    plt.close(fig)
