@@ -418,6 +418,20 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
 
 
 # ------------------------------------------------------------------------------------------------------- run
+def trace_arrays(est):
+    """``{"trace_<name>": array}`` of the numeric per-sweep traces a fitted estimator saved in ``trace_`` (a
+    dict, e.g. :class:`bsrbench.models.bsr.BayesianSR`); empty for estimators without one."""
+    trace = getattr(est, "trace_", None)
+    if not isinstance(trace, dict):
+        return {}
+    out = {}
+    for key, value in trace.items():
+        a = np.asarray(value)
+        if a.dtype.kind in "biuf":
+            out[f"trace_{key}"] = a
+    return out
+
+
 def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=None):
     """Fit ``estimator`` (dotted path) with ``params`` on the training frames of ``spec``'s split.
 
@@ -445,12 +459,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         train=train, test=test, Y_true=Y[test], Z_mean=Z_mean, Z_std=Z_std, fit_seconds=fit_seconds,
         predict_seconds=predict_seconds,
     )
-    trace = getattr(est, "trace_", None)
-    if isinstance(trace, dict):
-        for key, value in trace.items():
-            a = np.asarray(value)
-            if a.dtype.kind in "biuf":
-                arrays[f"trace_{key}"] = a
+    arrays.update(trace_arrays(est))
     return row, arrays
 
 
@@ -554,12 +563,7 @@ def run_chain(spec, features, *, estimator, params, chain):
             [mean_angle_error(Y[test], transform.inverse(draws[:, i, :])) for i in range(draws.shape[1])]
         )
     predict_seconds = time.perf_counter() - t0
-    trace = getattr(est, "trace_", None)
-    if isinstance(trace, dict):
-        for key, value in trace.items():
-            a = np.asarray(value)
-            if a.dtype.kind in "biuf":
-                out[f"trace_{key}"] = a
+    out.update(trace_arrays(est))
     out.update(
         chain=np.int64(chain), seed=np.int64(seed), n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
         fit_seconds=np.float64(fit_seconds), predict_seconds=np.float64(predict_seconds),
