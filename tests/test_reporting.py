@@ -108,14 +108,14 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
 
 def test_latex_table_notes_skipped_sizes_and_states_the_frames():
     df = aggregate_rows(_rows({("golf", "PM"): [8.0, 10.0], ("golf", "NN1"): [6.0, 7.0]}))
-    note = "N = 200 skipped: 167 frames leave -33 test frames, fewer than min_test = 100"
+    note = "N = 200 skipped: the 167 frames leave at most 0 test frames, fewer than min_test = 100"
     text = latex_table(summarize(df), _paper(), source="hsc", table="I", methods=["PM", "NN1"], labels=LABELS,
                        n_train=[30, 200], protocols=["random"], status={"Golf": "golf"},
                        skipped={"random": {"golf": [note]}}, frames={"golf": "one frame in 4, first 600 frames"})
     lines = [ln for ln in text.splitlines() if ln.endswith("\\\\")]
     golf = [ln for ln in lines if ln.startswith("Golf &")]
     assert golf[0].startswith("Golf & 30 & ") and r"$\pm$" in golf[0]
-    assert golf[-1].startswith("Golf & 200 & ") and "N = 200 skipped: 167 frames" in golf[-1]
+    assert golf[-1].startswith("Golf & 200 & ") and "N = 200 skipped: the 167 frames" in golf[-1]
     assert "pm" not in golf[-1]
     assert r"Frames. golf: one frame in 4, first 600 frames." in text
 
@@ -218,7 +218,7 @@ def test_parameters_table_lists_configured_cv_chosen_and_default_values():
     used = parameters_used(df, defaults={"PM": {"a": 5, "k": 3, "thin": 10, "random_state": None}})
     assert used["PM"] == ({"a": [1], "k": [64, 128]}, {"thin": 10, "random_state": "per job"})
     table = parameters_table(df, labels=LABELS, defaults={"PM": {"thin": 10}})
-    assert r"a=1, k=64|128 (CV)" in table and "thin=10" in table and "tabularx" in table
+    assert r"a=1, k=64|\allowbreak{}128 (CV)" in table and "thin=10" in table and "tabularx" in table
 
 
 def test_latex_log_problems_flags_overfull_boxes_and_undefined_references():

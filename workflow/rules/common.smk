@@ -94,9 +94,9 @@ def _check_study_config():
                 for n in config["n_train"]:
                     if n > limit:
                         SKIPPED_CELLS[(protocol, source, a, int(n))] = (
-                            f"N = {n} skipped: {known[a]} frames leave {known[a] - n}"
-                            + (f" (minus the gap of {config['gap']})" if protocol == "contiguous" else "")
-                            + f" test frames, fewer than min_test = {config['min_test']}"
+                            f"N = {n} skipped: the {known[a]} frames leave at most {max(known[a] - n, 0)} test "
+                            + "frames" + (f" (fewer after the gap of {config['gap']})" if protocol == "contiguous" else "")
+                            + f", fewer than min_test = {config['min_test']}"
                         )
     pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
     for protocol in config["protocols"]:

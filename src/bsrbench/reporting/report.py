@@ -257,7 +257,8 @@ def parameters_table(df, *, labels, defaults):
         est = df.drop_duplicates("method").set_index("method")["estimator"].to_dict()
 
     def cell(pairs):
-        items = [latex_escape(f"{k}={v}").replace("-", "-{}") for k, v in pairs]
+        # a line may break after each "|" of a CV list (tt text has no other break points)
+        items = [latex_escape(f"{k}={v}").replace("-", "-{}").replace("|", r"|\allowbreak{}") for k, v in pairs]
         return ", ".join(items) if items else r"\textrm{none}"
 
     rows = []
