@@ -22,6 +22,8 @@ def server_socket(tmp_path, monkeypatch):
     path = tmp_path / "js.sock"
     monkeypatch.setenv("BSRBENCH_JOBSERVER_SOCKET", str(path))
     monkeypatch.delenv(jobserver.OWNER_VAR, raising=False)
+    for var in jobserver._BATCH_JOB_VARS:
+        monkeypatch.delenv(var, raising=False)
     yield path
     jobserver.shutdown(path)
 
@@ -43,6 +45,17 @@ def test_job_runs_in_a_fork_of_one_server(server_socket, tmp_path):
     assert server_socket.exists()
     assert pids[0] != pids[1] and os.getpid() not in pids  # a fresh fork per job, not this process
     assert "ping from pid" in (tmp_path / "ping.log").read_text()
+
+
+@pytest.mark.parametrize("var", ["SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID"])
+def test_a_job_inside_a_batch_system_job_runs_in_process(server_socket, tmp_path, monkeypatch, var):
+    """On a cluster node the job runs in its own process even if the config asks for the server (a --config on
+    the command line replaces the SLURM profile's job_server=False)."""
+    monkeypatch.setenv(var, "4242")
+    monkeypatch.setattr(sys, "stderr", sys.stderr)  # run_local points stderr at the job's log
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path), use_server=True)
+    assert int((tmp_path / "out.txt").read_text()) == os.getpid()
+    assert not server_socket.exists()
 
 
 def test_error_reaches_the_client_and_the_log(server_socket, tmp_path):

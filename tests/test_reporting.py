@@ -292,3 +292,27 @@ def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
     sizes = [t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()]
     assert min(sizes) >= MIN_FONT_PT
     plt.close(fig)
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda df: pd.concat([df, df.iloc[[1]]]), r"row 6, column 'seed'.*appears twice"),
+        (lambda df: df.assign(error=df["error"].where(df.index != 2)), r"row 4, column 'error': nan; expected a finite"),
+        (lambda df: df.assign(error=df["error"].where(df.index != 0, -5.0)), r"row 2, column 'error': -5.0"),
+        (lambda df: df.assign(error=df["error"].astype(object).where(df.index != 0, "abc")), r"'abc'; expected a finite"),
+        (lambda df: df.assign(n_train=df["n_train"].astype(object).where(df.index != 3, "thirty")),
+         r"row 5, column 'n_train': 'thirty'; expected a whole number"),
+        (lambda df: df.assign(seed=df["seed"].where(df.index != 1, 1.5)), r"row 3, column 'seed': 1.5"),
+        (lambda df: df.drop(index=3), r"cell \{.*'activity': 'golf'.*\} has seeds \[0\]; expected all of \[0, 1\]"),
+    ],
+)
+def test_a_damaged_aggregate_table_is_never_summarised(tmp_path, damage, message):
+    """A duplicated, missing, non-finite, negative or mistyped value names its row and column (CSV numbering)."""
+    df = aggregate_rows(_rows({("acrobatics", "PM"): [8.0, 9.0], ("golf", "PM"): [5.0, 6.0]}))
+    path = tmp_path / "results.csv"
+    df.to_csv(path, index=False)
+    assert len(read_results(path)) == 4
+    damage(df).to_csv(path, index=False)
+    with pytest.raises(DataFileError, match=message):
+        read_results(path)

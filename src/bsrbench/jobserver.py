@@ -174,9 +174,21 @@ def run_local(target, job):
     _resolve(target)(job)
 
 
+#: Environment variables that batch systems set inside a submitted job: such a job runs on a compute node, where
+#: a job server would only add a start-up per job, so it runs in-process whatever the config key job_server says
+#: (a command-line ``--config`` replaces the SLURM profile's own ``job_server=False``).
+_BATCH_JOB_VARS = ("SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID")
+
+
+def in_batch_job():
+    """True inside a job submitted to SLURM, PBS/Torque or LSF (see :data:`_BATCH_JOB_VARS`)."""
+    return any(os.environ.get(var) for var in _BATCH_JOB_VARS)
+
+
 def run(target, job, *, use_server=True):
-    """Run a job: in a fork of the warm server if possible, else in this process."""
-    if use_server:
+    """Run a job: in a fork of the warm server if possible, else in this process (always in this process inside a
+    batch-system job, :func:`in_batch_job`)."""
+    if use_server and not in_batch_job():
         try:
             status, detail = _run_remote(target, job)
         except (OSError, EOFError, TimeoutError) as exc:

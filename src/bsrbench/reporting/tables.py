@@ -99,7 +99,36 @@ def read_results(path, design=None):
         raise DataFileError(path, f"missing columns {missing}")
     if design is not None:
         check_design(df, design, path=path)
+    check_rows(df, path=path)
     return df
+
+
+def check_rows(df, *, path):
+    """Raise DataFileError unless every row is a valid job result and every cell has all its seeds.
+
+    n_train and seed are whole numbers, ``error`` a finite number >= 0 (degrees), no job appears twice, and each
+    (protocol, source, activity, method, n_train) cell holds the same seeds as the whole table: a damaged or
+    partial table must never be summarised into means. CSV row numbers in messages count the header as row 1.
+    """
+    def bad(mask, column, expected):
+        if mask.any():
+            i = int(np.flatnonzero(mask)[0])
+            value = df[column].iloc[i]
+            value = value.item() if isinstance(value, np.generic) else value
+            raise DataFileError(path, f"row {i + 2}, column {column!r}: {value!r}; expected {expected}")
+
+    for col in ("n_train", "seed"):
+        v = pd.to_numeric(df[col], errors="coerce")
+        bad(~np.isfinite(v) | (v != np.round(v)), col, "a whole number")
+    err = pd.to_numeric(df["error"], errors="coerce")
+    bad(~np.isfinite(err) | (err < 0), "error", "a finite error >= 0 (degrees)")
+    bad(df.duplicated(KEY_COLUMNS, keep="first").to_numpy(), "seed", "one row per job (this job appears twice)")
+    seeds = set(df["seed"].astype(int))
+    cells = df.assign(seed=df["seed"].astype(int)).groupby(KEY_COLUMNS[:-1], sort=True)["seed"].agg(set)
+    for key, got in cells.items():
+        if got != seeds:
+            cell = dict(zip(KEY_COLUMNS[:-1], key))
+            raise DataFileError(path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}")
 
 
 def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
