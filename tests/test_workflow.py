@@ -61,6 +61,7 @@ def test_dry_run(args):
         ("n_train: [30, 550]", r"'n_train': 550 is too large for hsc/acrobatics"),
         ("n_train: [200]", r"study_activities\.mocap': walk has 167 frames, and every n_train \[200\] leaves"),
         ("n_seeds: 0", r"n_seeds"),
+        ("n_seed: 10", r"Additional properties are not allowed \('n_seed' was unexpected\)"),
         ("protocols: [blocks]", r"blocks"),
         ("cv: {mode: sometimes}", r"sometimes"),
         ("methods: {GPR: {estimator: 'bsrbench.models.gpr:GPR'}}\nrun: [PM, GPR]",
