@@ -127,6 +127,18 @@ def test_non_finite_test_input_is_a_clear_error(name, bad, split, fitted):
         fitted[name].predict(Xte)
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+@pytest.mark.parametrize("name", list(ESTIMATORS))
+def test_non_finite_training_output_is_a_clear_error(name, bad, split):
+    Xtr, Ztr = split[0], split[1].copy()
+    Ztr[4, 2] = bad
+    est = ESTIMATORS[name]()
+    kind = "NaN" if np.isnan(bad) else "infinity"
+    with pytest.raises(InputError, match=rf"{type(est).__name__}\.fit: Input Y contains {kind} at row 4, column 2; "
+                                         r"expected finite outputs"):
+        est.fit(Xtr, Ztr)
+
+
 def test_input_scaler_rules_and_errors():
     rng = np.random.default_rng(0)
     X = rng.random((20, 5)) * np.array([1.0, 2.0, 3.0, 1e-6, 0.0])

@@ -254,7 +254,7 @@ def test_non_finite_input(bad):
         BayesianSR(**SMALL).fit(X, Y)
     X, Y = _toy()
     Y[2, 0] = bad
-    with pytest.raises(ValueError, match="Input y contains (NaN|infinity)"):
+    with pytest.raises(InputError, match=r"BayesianSR\.fit: Input Y contains (NaN|infinity) at row 2, column 0"):
         BayesianSR(**SMALL).fit(X, Y)
 
 

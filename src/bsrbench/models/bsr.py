@@ -241,6 +241,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         if nx and ny and len(nx) >= 1 and len(ny) >= 1 and nx[0] != ny[0]:
             raise InputError(f"X and Y must have the same number of rows; got X with {nx[0]} and Y with {ny[0]}")
         check_finite_input(self, X, "fit")
+        check_finite_input(self, Y, "fit", name="Y")
         X, Y = validate_data(self, X, Y, multi_output=True, y_numeric=True, dtype=np.float64)
         N = X.shape[0]
         if N < self.n_neighbors or N < 2:

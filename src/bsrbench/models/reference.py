@@ -58,6 +58,7 @@ def _validate_fit(est, X, Y, min_samples=1):
     Records whether the target was 1-D and the output bounds ``y_bounds_`` (:func:`.scaling.output_bounds`)
     that :func:`_format_output` clips predictions to."""
     check_finite_input(est, X, "fit")
+    check_finite_input(est, Y, "fit", name="Y")
     X, Y = validate_data(est, X, Y, multi_output=True, y_numeric=True, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
     est._y_was_1d = Y.ndim == 1

@@ -59,10 +59,10 @@ OUTPUT_MARGIN = 0.5
 """Predictions are clipped to [min - m * width, max + m * width] of each training output column."""
 
 
-def check_finite_input(est, X, stage="predict"):
-    """Raise ``InputError`` if the array X (n, n_features) has a NaN or infinite entry, naming the estimator,
-    the stage (fit or predict), the first offending row and column and the value (before scikit-learn's
-    generic message)."""
+def check_finite_input(est, X, stage="predict", name="X"):
+    """Raise ``InputError`` if the array X (n, n_features) -- or the targets Y with ``name="Y"`` -- has a NaN or
+    infinite entry, naming the estimator, the stage (fit or predict), the first offending row and column and the
+    value (before scikit-learn's generic message)."""
     A = np.asarray(X)
     if A.dtype.kind not in "fc":
         return
@@ -71,8 +71,9 @@ def check_finite_input(est, X, stage="predict"):
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
         where = f"row {idx[0]}, column {idx[1]}" if len(idx) == 2 else f"index {idx}"
         kind = "NaN" if np.isnan(A[idx]) else "infinity"
+        what = "features" if name == "X" else "outputs"
         raise InputError(
-            f"{type(est).__name__}.{stage}: Input X contains {kind} at {where}; expected finite features "
+            f"{type(est).__name__}.{stage}: Input {name} contains {kind} at {where}; expected finite {what} "
             f"(impute or drop the frame first)"
         )
 
