@@ -34,11 +34,9 @@ _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tabl
 
 
 def publish(src, dest):
-    """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first."""
+    """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first
+    (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds)."""
     df = read_results(src)
-    dup = df.duplicated(KEY_COLUMNS, keep=False)
-    if dup.any():
-        raise DataFileError(src, f"duplicate job rows, e.g. {df.loc[dup, KEY_COLUMNS].iloc[0].to_dict()}")
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
     with atomic_path(dest) as tmp:
         df.to_csv(tmp, index=False)
