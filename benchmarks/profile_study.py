@@ -1,0 +1,121 @@
+"""Where a study's wall time goes: model compute, job overhead and scheduling, per kind of job.
+
+Reads what a finished run leaves behind, nothing else:
+- Snakemake's ``benchmark:`` files (``results/{study}/benchmarks/**.tsv``, ``logs/features``, ``logs/mocap``):
+  the wall time ``s`` of every job, from the rule's process start to its end;
+- the fit and CV rows (``results/{study}/fit/**.json``, ``results/{study}/cv/**.json``, per-chain ``.npz``):
+  the seconds spent inside the estimator (``fit_seconds + predict_seconds``, ``cv_seconds``), timed by the job;
+- optionally Snakemake's own log (``--log``): the run's wall time, from its first to its last time stamp.
+
+For each kind of job (PM fit, PM chain, PM CV, each baseline's fits and CV, features, the rest) it prints the
+number of jobs, the summed job wall time, the summed model time, and their difference (job overhead: starting
+the rule's process, handing the job to the job server, loading the features, writing the outputs). With the
+run's wall time W and c cores, c W minus the summed job wall time is the time no job was running on a core
+(scheduling, waiting on dependencies, the report).
+
+    python benchmarks/profile_study.py results/paper --log snakemake.log --cores 2
+"""
+
+import argparse
+import csv
+import json
+import re
+from collections import defaultdict
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+#: Snakemake's time stamps, e.g. "[Mon Nov 30 12:17:05 2026]".
+STAMP = re.compile(r"^\[(\w{3} \w{3} +\d+ \d\d:\d\d:\d\d \d{4})\]")
+
+
+def job_seconds(tsv):
+    """Wall time ``s`` (seconds) of one Snakemake benchmark file; raises ValueError naming the file if unreadable."""
+    with open(tsv, newline="") as fh:
+        rows = list(csv.DictReader(fh, delimiter="\t"))
+    if not rows or "s" not in rows[0]:
+        raise ValueError(f"{tsv}: expected a Snakemake benchmark table with a column 's'")
+    return float(rows[-1]["s"])
+
+
+def model_seconds(results, rel):
+    """Seconds spent in the estimator by the job whose benchmark file is ``rel`` (relative to benchmarks/)."""
+    kind = rel.parts[0]
+    stem = results / kind / rel.with_suffix("").relative_to(kind)
+    if kind == "cv":
+        return float(json.loads(stem.with_suffix(".json").read_text())["cv_seconds"])
+    if stem.name.startswith("chain"):
+        with np.load(stem.with_suffix(".npz"), allow_pickle=False) as z:
+            row = json.loads(str(z["row"])) if "row" in z.files else {}
+        return float(row.get("fit_seconds", np.nan)) + float(row.get("predict_seconds", np.nan))
+    row = json.loads(stem.with_suffix(".json").read_text())
+    return float(row["fit_seconds"]) + float(row["predict_seconds"])
+
+
+def kind_of(rel):
+    """('PM fit' | 'PM chain' | 'PM CV' | '<method> fit' | ...) for a benchmark file under results/{study}/benchmarks."""
+    parts = rel.parts
+    if parts[0] in ("cv", "fit"):
+        method = parts[4]
+        family = "PM" if method.startswith("PM") else method
+        what = "CV" if parts[0] == "cv" else ("chain" if rel.stem.startswith("chain") else "fit")
+        return f"{family} {what}"
+    return parts[0]
+
+
+def run_wall_seconds(log):
+    """Seconds between the first and the last Snakemake time stamp of ``log``."""
+    stamps = [
+        datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
+        for line in Path(log).read_text(errors="replace").splitlines()
+        if (m := STAMP.match(line))
+    ]
+    if len(stamps) < 2:
+        raise ValueError(f"{log}: expected Snakemake's time stamps ('[Mon Nov 30 12:17:05 2026]'), found {len(stamps)}")
+    return (max(stamps) - min(stamps)).total_seconds()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("results", type=Path, help="results/{study}")
+    ap.add_argument("--log", type=Path, help="Snakemake's log of the run (for its wall time)")
+    ap.add_argument("--cores", type=int, default=2)
+    args = ap.parse_args()
+    bench = args.results / "benchmarks"
+    if not bench.is_dir():
+        raise SystemExit(f"{bench}: no such directory (run the study first)")
+    rows = defaultdict(lambda: [0, 0.0, 0.0])
+    for tsv in sorted(bench.rglob("*.tsv")):
+        rel = tsv.relative_to(bench)
+        kind = kind_of(rel)
+        acc = rows[kind]
+        acc[0] += 1
+        acc[1] += job_seconds(tsv)
+        if rel.parts[0] in ("cv", "fit"):
+            acc[2] += model_seconds(args.results, rel)
+    for tsv in sorted(Path("logs/features").rglob("*.benchmark.tsv")) + sorted(Path("logs/mocap").rglob("*.benchmark.tsv")):
+        acc = rows["features and poses"]
+        acc[0] += 1
+        acc[1] += job_seconds(tsv)
+    total_job = sum(r[1] for r in rows.values())
+    print("| jobs of kind | n | job wall s | model s | overhead s | overhead per job s | share of job wall |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for kind, (n, wall, model) in sorted(rows.items(), key=lambda kv: -kv[1][1]):
+        over = wall - model if model else float("nan")
+        print(f"| {kind} | {n} | {wall:.0f} | {model:.0f} | {over:.0f} | {over / n:.2f} | {wall / total_job:.1%} |")
+    n_all = sum(r[0] for r in rows.values())
+    model_all = sum(r[2] for r in rows.values())
+    print(f"| all | {n_all} | {total_job:.0f} | {model_all:.0f} | | | |")
+    if args.log:
+        wall = run_wall_seconds(args.log)
+        idle = args.cores * wall - total_job
+        print(
+            f"\nrun wall time {wall:.0f} s ({wall / 60:.1f} min) on {args.cores} cores = {args.cores * wall:.0f} core-s; "
+            f"jobs occupied {total_job:.0f} core-s ({total_job / (args.cores * wall):.0%}), "
+            f"no job running: {idle:.0f} core-s (scheduling, dependencies, jobs without a benchmark file)"
+        )
+
+
+if __name__ == "__main__":
+    main()
