@@ -16,6 +16,16 @@ from bsrbench.cli_config import retype_cli_config
 retype_cli_config(config, workflow.config_settings.config_args, workflow.config_settings.config)
 
 
+# The fit, CV and chain jobs are shell commands `python -m bsrbench.jobserver job ...` (workflow/rules/fit.smk):
+# `python` is this interpreter (its directory first on PATH; a conda deployment puts its environment's first), and
+# the config key job_server reaches them as an environment variable, so switching it reruns nothing.
+import os
+
+from bsrbench import jobserver
+
+jobserver.configure_shell_jobs(use_server=config.get("job_server", True))
+
+
 include: "workflow/rules/datasets.smk"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/mocap.smk"
@@ -28,10 +38,6 @@ include: "workflow/rules/report.smk"
 # The job server (config key job_server) stops when this run ends and removes its files; its jobs carry this
 # process's pid so that it also stops if the run is killed (bsrbench.jobserver). Job processes inherit the
 # variable, so it names the main Snakemake process.
-import os
-
-from bsrbench import jobserver
-
 os.environ.setdefault(jobserver.OWNER_VAR, str(os.getpid()))
 
 

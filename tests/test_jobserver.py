@@ -196,3 +196,39 @@ def _wait_gone(pid, timeout=30):
             return
         time.sleep(0.05)
     pytest.fail(f"process {pid} still alive")
+
+
+def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path):
+    """`python -m bsrbench.jobserver job TARGET --threads --log JSON` (the rules' shell command, with the JSON of
+    job_params) runs the job with its params, wildcards and log, in the server or, with the server switched off
+    by the environment variable, in the command's own process."""
+    params = {"estimator": "x:Y", "n": 3, "per_method": lambda w: f"{w['method']}!"}
+
+    class Wildcards(dict):  # job_params calls params functions with Snakemake's wildcards object
+        def __getattr__(self, key):
+            return self[key]
+
+    wildcards = Wildcards(method="PM")
+    make = jobserver.job_params(params)
+    job_json = make(wildcards, {"features": "f.npz", "code": ["a.py", "b.py"]}, {"path": str(tmp_path / "out.txt")})
+    job = json.loads(job_json)
+    assert job["params"] == {"estimator": "x:Y", "n": 3, "per_method": "PM!"}
+    assert job["input"] == {"features": "f.npz", "code": ["a.py", "b.py"]}
+    assert job["wildcards"] == {"method": "PM"}
+    for use in ("1", "0"):
+        log = tmp_path / f"job{use}.log"
+        (tmp_path / "out.txt").unlink(missing_ok=True)
+        env = dict(os.environ, **{jobserver.USE_SERVER_VAR: use})
+        proc = subprocess.Popen([sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:ping",
+                                 "--threads", "1", "--log", str(log), job_json], env=env, cwd=tmp_path)
+        assert proc.wait(timeout=120) == 0
+        worker = int((tmp_path / "out.txt").read_text())
+        # through the server the job runs in a fork of the server; switched off, in the command's own process
+        assert (worker != proc.pid) if use == "1" else (worker == proc.pid)
+        assert "ping from pid" in log.read_text()
+    # a failing job: non-zero exit, the traceback in the job's log
+    bad = subprocess.run([sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:no_such_job",
+                          "--log", str(tmp_path / "bad.log"), job_json], env=dict(os.environ), cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert bad.returncode != 0
+    assert "no_such_job" in (tmp_path / "bad.log").read_text()

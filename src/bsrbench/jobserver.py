@@ -3,8 +3,8 @@
 Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a
 fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and
 loading numba's cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The
-rule scripts therefore hand their job to a server that has done those imports once and forks a child per job
-(the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through a
+rules' shell commands (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done
+those imports once and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through a
 Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout
 and stderr, and results are identical.
 
@@ -29,6 +29,7 @@ Lifecycle and safety:
 
 import errno
 import fcntl
+import gc
 import hashlib
 import importlib
 import os
@@ -121,20 +122,40 @@ def _plain(value):
     return value
 
 
+def _named(nl):
+    return {name: _plain(val) for name, val in nl.items()}
+
+
 def job_from_snakemake(sm):
     """The job dict of a Snakemake script object: named input/output/params/wildcards, log, threads."""
-
-    def named(nl):
-        return {name: _plain(val) for name, val in nl.items()}
-
     return {
-        "input": named(sm.input),
-        "output": named(sm.output),
-        "params": named(sm.params),
-        "wildcards": named(sm.wildcards),
+        "input": _named(sm.input),
+        "output": _named(sm.output),
+        "params": _named(sm.params),
+        "wildcards": _named(sm.wildcards),
         "log": [str(x) for x in sm.log],
         "threads": int(sm.threads),
     }
+
+
+def job_params(params):
+    """A Snakemake ``params`` function: the job as JSON (named input, output, wildcards, and ``params`` evaluated),
+    for a shell rule that runs ``python -m bsrbench.jobserver job TARGET --threads {threads} --log {log} JSON``.
+
+    ``params`` maps names to values or to functions of the wildcards (as in a rule's ``params``). A shell command
+    starts in about 0.06 s where a ``script:`` job spends about 0.25 s importing Snakemake's script module, which
+    in a study of thousands of sub-second jobs is minutes of wall time (benchmarks/profile_study.py).
+    """
+    import json
+
+    def job(wildcards, input, output):
+        values = {k: (v(wildcards) if callable(v) else v) for k, v in params.items()}
+        return json.dumps(
+            {"input": _named(input), "output": _named(output), "params": values, "wildcards": _named(wildcards)},
+            sort_keys=True,
+        )
+
+    return job
 
 
 def _resolve(target):
@@ -435,6 +456,9 @@ def serve(path, idle=IDLE_SECONDS):
         except ImportError:
             pass
     _warm_numba()
+    # Move everything imported so far out of the garbage collector's reach: a forked job that runs a collection
+    # would otherwise write to (and so copy) every page of the server's objects.
+    gc.freeze()
     fp = fingerprint()
     path = Path(path)
     if path.exists():
@@ -509,5 +533,39 @@ def _warm_numba():
         traceback.print_exc()
 
 
+#: Environment variable that switches the job server off ("0") for shell jobs; the Snakefile sets it from the
+#: config key job_server (an environment variable, not a rule param: where a job runs does not change its result,
+#: so switching it must not rerun finished jobs).
+USE_SERVER_VAR = "BSRBENCH_JOB_SERVER"
+
+
+def configure_shell_jobs(use_server=True):
+    """Prepare this process's environment, which Snakemake's shell jobs inherit, for ``python -m bsrbench.jobserver
+    job``: this interpreter's directory first on ``PATH`` (so that ``python`` is the interpreter running Snakemake;
+    a conda deployment activates its own environment inside the job, which then comes first), and
+    :data:`USE_SERVER_VAR` set from the config key ``job_server``."""
+    os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+    os.environ[USE_SERVER_VAR] = "1" if use_server else "0"
+
+
+def main(argv=None):
+    """``python -m bsrbench.jobserver SOCKET`` serves; ``... job TARGET --threads T --log LOG JSON`` runs a job."""
+    import argparse
+    import json
+
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] != ["job"]:
+        serve(argv[0])
+        return
+    ap = argparse.ArgumentParser(prog="python -m bsrbench.jobserver job")
+    ap.add_argument("target", help="module:function of bsrbench.jobs")
+    ap.add_argument("job", help="the job as JSON (job_params)")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--log", action="append", default=[])
+    args = ap.parse_args(argv[1:])
+    job = dict(json.loads(args.job), threads=args.threads, log=args.log)
+    run(args.target, job, use_server=os.environ.get(USE_SERVER_VAR, "1") != "0")
+
+
 if __name__ == "__main__":
-    serve(sys.argv[1])
+    main()

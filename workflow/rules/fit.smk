@@ -1,4 +1,37 @@
 # Fit jobs: one per (protocol, source, activity, method, n_train, seed); CV jobs choose hyper-parameters.
+#
+# The bodies are in bsrbench.jobs; each rule's shell command hands its job (params.job, JSON) to
+# bsrbench.jobserver, which runs it in a fork of a warm Python process (config key job_server) or in the
+# command's own process. Shell rather than script: a script job would spend ~0.25 s importing Snakemake.
+
+JOB = "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}}"
+
+CV_PARAMS = dict(
+    estimator=lambda w: method_setting(w.method)["estimator"],
+    fixed=lambda w: method_setting(w.method).get("params", {}),
+    cv_params=lambda w: method_setting(w.method).get("cv_params") or {},
+    grid=method_grid,
+    folds=config["cv"]["folds"],
+    pose_transform=config["pose_transform"],
+    min_test=config["min_test"],
+    gap=config["gap"],
+)
+FIT_PARAMS = dict(
+    estimator=lambda w: method_setting(w.method)["estimator"],
+    fixed=lambda w: method_setting(w.method).get("params", {}),
+    cv_mode=config["cv"]["mode"],
+    paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
+    pose_transform=config["pose_transform"],
+    min_test=config["min_test"],
+    gap=config["gap"],
+)
+CHAIN_PARAMS = dict(
+    estimator=lambda w: method_setting(w.method)["estimator"],
+    fixed=lambda w: method_setting(w.method).get("params", {}),
+    pose_transform=config["pose_transform"],
+    min_test=config["min_test"],
+    gap=config["gap"],
+)
 
 
 rule cv:
@@ -12,22 +45,16 @@ rule cv:
     benchmark:
         f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
-        estimator=lambda w: method_setting(w.method)["estimator"],
-        fixed=lambda w: method_setting(w.method).get("params", {}),
-        cv_params=lambda w: method_setting(w.method).get("cv_params") or {},
-        grid=method_grid,
-        folds=config["cv"]["folds"],
-        pose_transform=config["pose_transform"],
-        min_test=config["min_test"],
-        gap=config["gap"],
+        **CV_PARAMS,
+        job=jobserver.job_params(CV_PARAMS),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
     resources:
         mem_mb=2000,
         runtime=120,
-    script:
-        "../scripts/cv_job.py"
+    shell:
+        JOB.format(target="bsrbench.jobs:cv")
 
 
 rule fit:
@@ -43,13 +70,8 @@ rule fit:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
-        estimator=lambda w: method_setting(w.method)["estimator"],
-        fixed=lambda w: method_setting(w.method).get("params", {}),
-        cv_mode=config["cv"]["mode"],
-        paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
-        pose_transform=config["pose_transform"],
-        min_test=config["min_test"],
-        gap=config["gap"],
+        **FIT_PARAMS,
+        job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=False),
     threads: 1
@@ -58,8 +80,8 @@ rule fit:
     resources:
         mem_mb=2000,
         runtime=30,
-    script:
-        "../scripts/fit_job.py"
+    shell:
+        JOB.format(target="bsrbench.jobs:fit")
 
 
 # Methods with `chains: C` > 1: C chain jobs per split (one MCMC chain per process, sampler seed
@@ -76,11 +98,8 @@ rule fit_chain:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
     params:
-        estimator=lambda w: method_setting(w.method)["estimator"],
-        fixed=lambda w: method_setting(w.method).get("params", {}),
-        pose_transform=config["pose_transform"],
-        min_test=config["min_test"],
-        gap=config["gap"],
+        **CHAIN_PARAMS,
+        job=jobserver.job_params(CHAIN_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
     threads: 1
@@ -89,8 +108,8 @@ rule fit_chain:
     resources:
         mem_mb=2000,
         runtime=60,
-    script:
-        "../scripts/fit_chain.py"
+    shell:
+        JOB.format(target="bsrbench.jobs:fit_chain")
 
 
 rule pool_chains:
@@ -104,13 +123,8 @@ rule pool_chains:
     log:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     params:
-        estimator=lambda w: method_setting(w.method)["estimator"],
-        fixed=lambda w: method_setting(w.method).get("params", {}),
-        cv_mode=config["cv"]["mode"],
-        paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
-        pose_transform=config["pose_transform"],
-        min_test=config["min_test"],
-        gap=config["gap"],
+        **FIT_PARAMS,
+        job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
     threads: 1
@@ -119,5 +133,5 @@ rule pool_chains:
     resources:
         mem_mb=2000,
         runtime=10,
-    script:
-        "../scripts/pool_chains.py"
+    shell:
+        JOB.format(target="bsrbench.jobs:pool")
