@@ -127,7 +127,8 @@ def retype_yaml_numbers(config, schema):
     ``schema``: the configuration's JSON schema (:func:`load_schema`). A string matching YAML 1.2's float syntax
     with an exponent becomes a float where the schema allows ``number`` or sets no type (free-form values such as
     estimator parameters), an int where it allows only ``integer`` and the value is whole; elsewhere (a string key)
-    it is left alone for the schema to judge.
+    it is left alone for the schema to judge. A whole float where only an integer is allowed becomes an int
+    (Snakemake reads ``--config n_seeds=1e1`` as 10.0).
     """
     changed = []
 
@@ -143,6 +144,10 @@ def retype_yaml_numbers(config, schema):
             for i, v in enumerate(value):
                 value[i] = walk(v, item, f"{where}[{i}]")
             return value
+        if isinstance(value, float) and value.is_integer() and _types(node, schema) & {"integer", "number"} == {
+                "integer"}:  # `--config n_seeds=1e1`: Snakemake reads 10.0
+            changed.append(where)
+            return int(value)
         if isinstance(value, str) and _EXPONENT_FLOAT.fullmatch(value.strip()):
             types = _types(node, schema)
             number = float(value)
