@@ -162,6 +162,11 @@ def test_method_values_checked_only_where_they_apply():
     check_method_settings({"M": setting}, ["M"])  # no sizes given: values alone
     with pytest.raises(InputError, match="training folds of 24 frames"):
         check_method_settings({"M": setting}, ["M"], n_train=[30, 40], cv={"mode": "per_size", "folds": 5})
+    # cv_params act in CV fits only
+    bad_cv = {**setting, "cv_params": {"n_iter": 10}}  # n_burn_in 20 >= 10 in the CV fits
+    check_method_settings({"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "none", "folds": 5})
+    with pytest.raises(InputError, match=r"'methods\.M\.cv_params'"):
+        check_method_settings({"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "per_size", "folds": 5})
     # cv.folds > N matters only when a method is tuned
     check_method_settings({"M": {**setting, "grid": None}}, ["M"], n_train=[30], cv={"mode": "per_size", "folds": 31})
 

@@ -202,7 +202,7 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
         check_estimator_params(path, params)
     except InputError as exc:
         fail(f"methods.{name}.params", exc, f"params {shown(params)}")
-    if cv_params:
+    if cv_params and (cv is None or cv_runs):  # cv_params act in CV fits only
         try:
             check_estimator_params(path, {**params, **cv_params})
         except InputError as exc:
