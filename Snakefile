@@ -1,5 +1,7 @@
 # bsrbench: Bayesian sparse-representation pose estimation, reproduced and benchmarked.
 # Entry only: configuration, validation, rule modules, and the default target.
+from pathlib import Path
+
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -10,10 +12,17 @@ configfile: "config/config.yaml"
 
 
 # `--config key='[...]'` and `key='{...}'` read as YAML, as in the configuration files (Snakemake keeps the
-# scalars inside them strings); before any validation.
-from bsrbench.cli_config import retype_cli_config
+# scalars inside them strings); then numbers such as 1e-3, which YAML 1.1 reads as strings, read as numbers
+# wherever the schema allows one (bsrbench.cli_config); before any validation.
+from bsrbench.cli_config import load_schema, retype_cli_config, retype_yaml_numbers
 
 retype_cli_config(config, workflow.config_settings.config_args, workflow.config_settings.config)
+retype_yaml_numbers(
+    config,
+    load_schema(
+        *(Path(workflow.basedir) / "workflow" / "schemas" / f for f in ("config.schema.yaml", "datasets.schema.yaml"))
+    ),
+)
 
 
 # The fit, CV and chain jobs are shell commands `python -m bsrbench.jobserver job ...` (workflow/rules/fit.smk):

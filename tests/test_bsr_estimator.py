@@ -274,6 +274,8 @@ def test_fewer_rows_than_neighbours():
         ({"n_atoms": 0}, "n_atoms must be >= 1; got 0"),
         ({"n_atoms": 2.5}, "n_atoms must be an integer; got 2.5"),
         ({"thin": 0}, "thin must be >= 1; got 0"),
+        ({"n_iter": 30, "n_burn_in": 15, "thin": 16},  # before: silently kept the last sweep only
+         r"thin=16 retains no sweep of the n_iter - n_burn_in = 15 after burn-in; expected thin <= 15"),
         ({"w_update": "gibbs"}, "w_update must be one of .*got 'gibbs'"),
         ({"atom_update": "joint"}, "atom_update must be one of .*got 'joint'"),
         ({"prediction_weighting": "max"}, "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'"),

@@ -8,7 +8,7 @@ import yaml
 from snakemake.cli import parse_config
 from snakemake.utils import update_config
 
-from bsrbench.cli_config import retype_cli_config
+from bsrbench.cli_config import load_schema, retype_cli_config, retype_yaml_numbers
 from bsrbench.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,3 +81,47 @@ def test_scalars_keep_snakemakes_reading_and_bad_yaml_names_the_key():
     arg = "n_train=[30, 60"
     with pytest.raises(InputError, match=r"--config n_train: '\[30, 60' is not valid YAML"):
         retype_cli_config({}, [arg], {"n_train": ["fake"]})
+
+
+# ------------------------------------------------------------------------------ 1e-3: a string in YAML 1.1
+def test_exponent_numbers_read_as_numbers_where_the_schema_allows_one():
+    """YAML 1.1 (PyYAML, Snakemake's loader) reads 1e-3, 1E3 and 1.0e3 as strings. Before, `alpha: 1e-3` reached
+    the estimator as the string '1e-3' and `gap: 3e1` failed the schema; now both are numbers, and keys the schema
+    types as strings keep the text."""
+    config = yaml.safe_load(
+        """
+        study: 1e3
+        gap: 3e1
+        n_seeds: 10.0
+        min_test: 1.5e0
+        n_train: [3e1, 1E2, 60]
+        methods:
+          Ridge: {estimator: x, label: 1e3, params: {alpha: 1e-3, input_scaling: pooled},
+                  grid: {alpha: [1e-3, 1.0e3, -2E2, 10]}, cv_params: {alpha: 1e-1}}
+          PM: {grid: default}
+        datasets: {mocap: {walk: {n_frames: 2e2, files: [1e3]}}}
+        features: {render: {view_azimuth_deg: 1e1, image_size: [1.28e2, 128]}}
+        """
+    )
+    assert config["gap"] == "3e1" and config["methods"]["Ridge"]["params"]["alpha"] == "1e-3"  # YAML 1.1
+    changed = retype_yaml_numbers(config, load_schema(*SCHEMAS))
+    assert config["gap"] == 30 and isinstance(config["gap"], int)  # integer keys: whole numbers as int
+    assert config["n_seeds"] == 10 and isinstance(config["n_seeds"], int)  # `--config n_seeds=1e1` gives 10.0
+    assert config["min_test"] == "1.5e0"  # not whole: left for the schema to reject, naming the key
+    assert config["n_train"] == [30, 100, 60] and all(isinstance(n, int) for n in config["n_train"])
+    ridge = config["methods"]["Ridge"]
+    assert ridge["params"] == {"alpha": 0.001, "input_scaling": "pooled"}
+    assert ridge["grid"] == {"alpha": [0.001, 1000.0, -200.0, 10]} and ridge["cv_params"] == {"alpha": 0.1}
+    assert config["methods"]["PM"]["grid"] == "default"
+    assert config["study"] == "1e3" and ridge["label"] == "1e3"  # string keys untouched
+    assert config["datasets"]["mocap"]["walk"] == {"n_frames": 200, "files": ["1e3"]}
+    assert config["features"]["render"] == {"view_azimuth_deg": 10.0, "image_size": [128, 128]}
+    assert isinstance(config["features"]["render"]["view_azimuth_deg"], float)  # a number key stays a float
+    assert "methods.Ridge.params.alpha" in changed and "study" not in changed
+
+
+def test_every_shipped_configuration_is_unchanged_by_the_number_reading():
+    schema = load_schema(*SCHEMAS)
+    for path in sorted((ROOT / "config").glob("*.yaml")):
+        config = yaml.safe_load(path.read_text())
+        assert retype_yaml_numbers(config, schema) == [], path

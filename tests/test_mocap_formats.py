@@ -58,6 +58,46 @@ def test_asf_name_without_value_names_file_and_line(tmp_path):
         parse_asf(_write(tmp_path, "01.asf", text))
 
 
+@pytest.mark.parametrize(
+    "old, new, message",
+    [
+        ("direction 0 1 0", "direction 0 0 0",
+         r"direction 0 0 0 is the zero vector; expected a unit vector"),
+        ("direction 0 1 0", "direction 0 2 0",
+         r"direction 0 2 0 has norm 2; expected a unit vector .*e\.g\. direction 0 1 0"),
+        ("direction 0 1 0", "direction 1 1 0",
+         r"direction 1 1 0 has norm 1\.41421; .*e\.g\. direction 0\.707107 0\.707107 0"),
+        ("limits (-20.0 45.0)", "limits (45.0 -20.0)",
+         r"limits \(45\.0 -20\.0\): the lower bound 45 is above the upper bound -20; expected \(lo hi\) with lo <= hi"),
+        ("limits (-20.0 45.0)", "limits (-20.0 45.0)\n           (inf -inf)",
+         r"limits \(inf -inf\): the lower bound inf is above the upper bound -inf"),
+    ],
+    ids=["zero-direction", "direction-norm-2", "direction-unnormalised", "inverted-limits", "inverted-continued"],
+)
+def test_asf_bad_direction_or_inverted_limits_names_file_line_and_values(tmp_path, old, new, message):
+    """Before: a zero direction was taken as is (the child joint sat on its parent), a non-unit one was normalised
+    silently, and inverted limits were kept; now each is a DataFileError naming the file, the line and the values."""
+    text = ASF.replace(old, new, 1)
+    line = _line_of(ASF, old) + new.count("\n")
+    p = _write(tmp_path, "01.asf", text)
+    with pytest.raises(DataFileError, match=message) as err:
+        parse_asf(p)
+    assert err.value.line == line and str(err.value).startswith(f"{p}: line {line}: ")
+
+
+def test_asf_direction_rounded_to_six_decimals_is_normalised(tmp_path):
+    """A unit vector printed with 6 decimals (CMU's files) is accepted and normalised exactly."""
+    text = ASF.replace("direction 0 1 0", "direction 0.707107 0.707107 0", 1)
+    asf = parse_asf(_write(tmp_path, "01.asf", text))
+    ref = parse_asf(DATA / "01.asf")
+    moved = [j for j in range(len(ref.skeleton.offsets))
+             if not np.array_equal(asf.skeleton.offsets[j], ref.skeleton.offsets[j])]
+    assert moved  # the child joints of the first bone moved
+    for j in moved:
+        np.testing.assert_allclose(np.linalg.norm(asf.skeleton.offsets[j]), np.linalg.norm(ref.skeleton.offsets[j]),
+                                   rtol=1e-12)
+
+
 # ----------------------------------------------------------------------------------- each kind, as a whole
 def _windows(text):
     return b"\xef\xbb\xbf" + text.replace("\n", "\r\n").encode()

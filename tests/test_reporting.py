@@ -2,6 +2,7 @@
 
 import io
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -316,3 +317,60 @@ def test_a_damaged_aggregate_table_is_never_summarised(tmp_path, damage, message
     damage(df).to_csv(path, index=False)
     with pytest.raises(DataFileError, match=message):
         read_results(path)
+
+
+# ------------------------------------------------------------------------ python -m bsrbench.reporting.published
+PUBLISHED = Path(__file__).resolve().parents[1] / "reports" / "published" / "paper.csv"
+PAPER_TABLES_CSV = Path(__file__).resolve().parents[1] / "resources" / "paper-tables.csv"
+
+
+def _files(tmp_path):
+    """Missing and garbled inputs: {name: path}."""
+    out = {"missing": tmp_path / "nope" / "file.csv", "folder": tmp_path}
+    for name, data in {"binary": b"\x00\xff\xfe garbage", "empty": b"", "cols": b"a,b\n1,2\n"}.items():
+        out[name] = tmp_path / f"{name}.csv"
+        out[name].write_bytes(data)
+    bad = PAPER_TABLES_CSV.read_text().replace("I,Acrobatics,30,RVM,15.963", "I,Acrobatics,30,RVM,abc", 1)
+    out["paper-value"] = tmp_path / "paper-value.csv"
+    out["paper-value"].write_text(bad)
+    return out
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["readme", "{published}", "--update", "{missing}"],
+         r"nope/file\.csv: cannot read the file to update \(No such file or directory\); expected an existing UTF-8"),
+        (["readme", "{published}", "--update", "{folder}"], r"cannot read the file to update \(Is a directory\)"),
+        (["readme", "{published}", "--update", "{binary}"], r"binary\.csv: cannot read the file to update \('utf-8'"),
+        (["readme", "{published}", "--update", "{cols}"], r"cols\.csv: no markers '<!-- results-table:hsc -->'"),
+        (["readme", "{missing}"], r"file\.csv: cannot read the aggregate table"),
+        (["readme", "{binary}"], r"binary\.csv: cannot read the aggregate table \('utf-8' codec"),
+        (["readme", "{empty}"], r"empty\.csv: cannot read the aggregate table \(No columns"),
+        (["readme", "{cols}"], r"cols\.csv: missing columns \['protocol'"),
+        (["readme", "{published}", "--paper", "{binary}"], r"binary\.csv: cannot read the paper's tables"),
+        (["readme", "{published}", "--paper", "{empty}"], r"empty\.csv: cannot read the paper's tables"),
+        (["readme", "{published}", "--paper", "{paper-value}"],
+         r"paper-value\.csv: row 2, column 'mean_deg': 'abc'; expected a finite number >= 0"),
+        (["readme", "{published}", "--protocol", "sideways"], r"no rows of protocol 'sideways'"),
+        (["publish", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
+        (["publish", "{published}", "{binary}/out.csv"], r"binary\.csv/out\.csv: cannot write the published table"),
+    ],
+    ids=["update-missing", "update-folder", "update-binary", "update-no-markers", "table-missing", "table-binary",
+         "table-empty", "table-columns", "paper-binary", "paper-empty", "paper-value", "protocol", "publish-binary",
+         "publish-unwritable"],
+)
+def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsys, args, message):
+    """Before: `readme ... --update MISSING` (and a binary table, an empty or non-numeric paper table, an
+    unwritable destination) ended in a FileNotFoundError/UnicodeDecodeError/ValueError traceback; now exit code 2
+    and one line naming the file, with every input left unchanged."""
+    from bsrbench.reporting.published import main
+
+    paths = {k: str(v) for k, v in _files(tmp_path).items()}
+    before = {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    argv = [a.format(published=PUBLISHED, tmp=tmp_path, **paths) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert re.search(message, err), err
+    assert {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before

@@ -69,6 +69,14 @@ def test_dry_run(args):
         ("methods: {PM: {params: {n_atom: 8}}}", r"'methods\.PM\.params': n_atom: 8 is not a parameter of "
                                                  r"bsrbench\.models\.bsr:BayesianSR; expected one of \["),
         ("methods: {Ridge: {grid: {lam: [1.0]}}}", r"'methods\.Ridge\.grid': lam: \[1\.0\] is not a parameter"),
+        # parameter values, checked by each estimator's own validation (before: only when a job ran)
+        ("methods: {PM: {params: {n_atoms: -3}}}",
+         r"'methods\.PM\.params' \(method PM, bsrbench\.models\.bsr:BayesianSR\): .*n_atoms must be >= 1; got -3"),
+        ("methods: {PM: {params: {w_update: foo}}}", r"'methods\.PM\.params' .*w_update must be one of .*got 'foo'"),
+        ("methods: {PM: {params: {n_neighbors: 40}}}",
+         r"'methods\.PM\.params' .*smallest n_train N = 30: BayesianSR needs at least max\(2, n_neighbors=40\)"),
+        ("methods: {PM: {params: {thin: 200}}}", r"thin=200 retains no sweep of the n_iter - n_burn_in = 100"),
+        ("cv: {mode: per_size, folds: 40}", r"'cv\.folds': 40 folds of the smallest n_train N = 30 .*empty folds"),
     ],
 )
 def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_path):
@@ -77,6 +85,21 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
     res = smk("-n", "--cores", "1", "--configfile", str(bad))
     assert res.returncode != 0
     assert re.search(message, res.stdout + res.stderr), res.stdout[-2000:] + res.stderr[-2000:]
+
+
+@pytest.mark.parametrize("how", ["configfile", "config"])
+def test_exponent_numbers_are_numbers_in_config_files_and_on_the_command_line(how, tmp_path):
+    """YAML 1.1 reads 1e-3 as a string: before, `gap: 3e1` failed the schema ("'3e1' is not of type 'integer'")
+    and `alpha: 1e-3` reached the estimator as '1e-3'; now both are numbers (bsrbench.cli_config), and the
+    load-time value check (which rejects a string alpha) passes."""
+    if how == "configfile":
+        over = tmp_path / "over.yaml"
+        over.write_text("gap: 3e1\nprotocols: [contiguous]\nmethods: {Ridge: {params: {alpha: 1e-3}}}\n")
+        res = smk("-n", "--cores", "1", "--configfile", str(over))
+    else:
+        res = smk("-n", "--cores", "1", "--config", "methods={Ridge: {params: {alpha: 1e-3}}}", "n_train=[3e1, 1e2]",
+                  "n_seeds=2e0")
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
 
 
 def copy_tree(work):

@@ -10,7 +10,20 @@ overridden from the command line with the YAML flow syntax of the configuration 
     snakemake --cores 2 --config study_activities='{hsc: [golf], mocap: []}' report='{subjective_methods: [SR]}'
 
 Mappings are merged into the configuration's, lists and scalars replace it (as with ``--configfile``).
+
+Numbers in exponent notation: YAML 1.1, which PyYAML and so Snakemake's loader follow, reads ``1e-3``, ``1E3``
+and ``1.0e3`` (an exponent without a decimal point or without a sign) as STRINGS, while YAML 1.2 and JSON read
+them as numbers. :func:`retype_yaml_numbers` reads such strings as floats (``1e-3`` -> 0.001) wherever the
+configuration schema allows a number: keys of type number (or integer, when the value is whole: ``1e2`` -> 100),
+and the values the schema leaves open (``methods.<M>.params``, ``cv_params``, the values of a ``grid``). Keys the
+schema types as strings (names, labels, paths) are never touched; a quoted ``'1e-3'`` in such a place cannot be
+told from an unquoted one after loading, so a string parameter spelled like a number is read as the number.
+The Snakefile calls both functions right after the configuration is loaded, before any validation, so
+``--configfile`` files, ``configfile:`` files and ``--config`` values are read alike.
 """
+
+import re
+from pathlib import Path
 
 from snakemake.utils import update_config
 
@@ -42,3 +55,109 @@ def retype_cli_config(config, config_args, parsed):
             ) from None
         update_config(config, {key: value})
     return config
+
+
+#: A float of YAML 1.2's core schema that YAML 1.1 reads as a string: exponent without a decimal point or sign.
+_EXPONENT_FLOAT = re.compile(r"[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+")
+
+
+def load_schema(*paths):
+    """The configuration schema: the union of the JSON schemas at ``paths`` (their top-level ``properties`` and
+    ``$defs``; a later file's entries replace an earlier one's, so the data-set schema's precise ``datasets``
+    replaces the study schema's placeholder)."""
+    out = {"type": "object", "properties": {}, "$defs": {}}
+    for path in paths:
+        schema = yaml.safe_load(Path(path).read_text())
+        out["properties"].update(schema.get("properties") or {})
+        out["$defs"].update(schema.get("$defs") or {})
+    return out
+
+
+def _resolve(node, root):
+    while isinstance(node, dict) and isinstance(node.get("$ref"), str) and node["$ref"].startswith("#/"):
+        target = root
+        for part in node["$ref"][2:].split("/"):
+            target = target.get(part, {})
+        node = target
+    return node if isinstance(node, dict) else {}
+
+
+def _branches(node, root):
+    """The subschemas a value may match: the node itself and its oneOf/anyOf alternatives (resolved)."""
+    node = _resolve(node, root)
+    alts = [_resolve(a, root) for key in ("oneOf", "anyOf") for a in node.get(key) or []]
+    return [node, *alts]
+
+
+def _types(node, root):
+    """The JSON types a node allows (empty set: no constraint)."""
+    out = set()
+    for b in _branches(node, root):
+        t = b.get("type")
+        out |= {t} if isinstance(t, str) else set(t or [])
+    return out
+
+
+def _child(node, root, container, key=None):
+    """The subschema of an item (``container`` "array") or of the property ``key`` (``container`` "object");
+    None if the schema forbids it; {} (no constraint) if it says nothing."""
+    for b in _branches(node, root):
+        t = b.get("type")
+        kinds = {t} if isinstance(t, str) else set(t or [])
+        if kinds and container not in kinds:
+            continue
+        if container == "array":
+            if "items" in b:
+                return b["items"]
+            continue
+        if key in (b.get("properties") or {}):
+            return b["properties"][key]
+        extra = b.get("additionalProperties", None)
+        if isinstance(extra, dict):
+            return extra
+        if extra is False and (b.get("properties") or kinds):
+            return None
+    return {}
+
+
+def retype_yaml_numbers(config, schema):
+    """Read as numbers the strings YAML 1.1 left from YAML 1.2 floats (``1e-3``), where ``schema`` allows a
+    number (in place; returns the dotted keys changed).
+
+    ``schema``: the configuration's JSON schema (:func:`load_schema`). A string matching YAML 1.2's float syntax
+    with an exponent becomes a float where the schema allows ``number`` or sets no type (free-form values such as
+    estimator parameters), an int where it allows only ``integer`` and the value is whole; elsewhere (a string key)
+    it is left alone for the schema to judge. A whole float where only an integer is allowed becomes an int
+    (Snakemake reads ``--config n_seeds=1e1`` as 10.0).
+    """
+    changed = []
+
+    def walk(value, node, where):
+        if node is None:
+            return value
+        if isinstance(value, dict):
+            for k in list(value):
+                value[k] = walk(value[k], _child(node, schema, "object", k), f"{where}.{k}" if where else str(k))
+            return value
+        if isinstance(value, list):
+            item = _child(node, schema, "array")
+            for i, v in enumerate(value):
+                value[i] = walk(v, item, f"{where}[{i}]")
+            return value
+        if isinstance(value, float) and value.is_integer() and _types(node, schema) & {"integer", "number"} == {
+                "integer"}:  # `--config n_seeds=1e1`: Snakemake reads 10.0
+            changed.append(where)
+            return int(value)
+        if isinstance(value, str) and _EXPONENT_FLOAT.fullmatch(value.strip()):
+            types = _types(node, schema)
+            number = float(value)
+            if not types or "number" in types:
+                changed.append(where)
+                return number
+            if "integer" in types and number.is_integer():
+                changed.append(where)
+                return int(number)
+        return value
+
+    walk(config, schema, "")
+    return changed

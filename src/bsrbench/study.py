@@ -98,14 +98,52 @@ def estimator_defaults(path):
         }
 
 
-def check_method_settings(methods, run):
-    """Check, before any job runs, that every method in ``run`` can be built as configured.
+def check_estimator_params(path, params, n_samples=None):
+    """Build the estimator at ``path`` with ``params`` and run its own parameter validation, without data.
+
+    The estimator's ``_check_params(n_samples=None)`` (the check its ``fit`` makes; bsrbench's estimators have
+    one), else scikit-learn's ``_validate_params()`` (the ``_parameter_constraints`` of scikit-learn's own
+    estimators); an estimator with neither is only built. ``n_samples``: the number of training rows it will be
+    fitted on, for the checks that depend on it (e.g. ``n_neighbors <= N``); None skips those. Raises
+    InputError with the estimator's message (naming the parameter, its value and what it expects).
+    """
+    try:
+        est = make_estimator(path, params)
+        check = getattr(est, "_check_params", None)
+        if callable(check):
+            if "n_samples" in inspect.signature(check).parameters:
+                check(n_samples=n_samples)
+            else:
+                check()
+        elif callable(getattr(est, "_validate_params", None)) and hasattr(est, "_parameter_constraints"):
+            est._validate_params()
+    except InputError:
+        raise
+    except (ValueError, TypeError) as exc:  # scikit-learn's InvalidParameterError, or a constructor's own check
+        raise InputError(str(exc).splitlines()[0] if str(exc) else repr(exc)) from None
+
+
+def _grid_points(grid):
+    """The points of a CV grid ({param: [values]}), in scikit-learn's ParameterGrid order; [{}] for no grid."""
+    if not grid:
+        return [{}]
+    from sklearn.model_selection import ParameterGrid
+
+    return list(ParameterGrid(grid))
+
+
+def check_method_settings(methods, run, *, n_train=None, cv=None):
+    """Check, before any job runs, that every method in ``run`` can be built and fitted as configured.
 
     ``methods``: the configuration's ``methods`` mapping ({name: {estimator, params, cv_params, grid, ...}});
     ``run``: the names of the methods to run. For each method run, its estimator class must import and every
     key of ``params``, ``cv_params`` and ``grid`` (the module's ``DEFAULT_GRID`` for ``grid: default``) must be
-    a constructor parameter of it. Raises InputError naming the configuration key, the value and what was
-    expected.
+    a constructor parameter of it. Then the VALUES are checked by the estimator's own validation
+    (:func:`check_estimator_params`): ``params`` alone; with ``n_train`` (the training-set sizes) and ``cv`` (the
+    configuration's ``{"mode", "folds"}``), every setting a job will fit: ``params`` updated with each grid
+    point (a CV choice) on the smallest N, and, when CV runs, ``params`` + ``cv_params`` + each grid point on the
+    smallest training fold (KFold: N - ceil(N / folds) rows); ``cv.folds`` must not exceed the smallest N.
+    Raises InputError naming the configuration key, the method, the value and what was expected.
     """
     for name in run:
         if name not in methods:
@@ -143,6 +181,64 @@ def check_method_settings(methods, run):
         for p, v in (grid or {}).items():
             if not isinstance(v, (list, tuple)) or not v:
                 raise InputError(f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values")
+        _check_method_values(name, setting, path, grid or {}, where_grid, n_train=n_train, cv=cv)
+
+
+def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
+    """The value checks of :func:`check_method_settings` for one method (keys already known to be valid)."""
+    params = dict(setting.get("params") or {})
+    cv_params = dict(setting.get("cv_params") or {})
+    cv_runs = bool(cv) and cv.get("mode", "none") != "none" and bool(grid)
+    points = _grid_points(grid) if cv_runs else [{}]
+    sizes = sorted({int(n) for n in n_train}) if n_train else []
+
+    def fail(key, exc, what):
+        raise InputError(f"config key '{key}' (method {name}, {path}): {what}: {exc}") from None
+
+    def shown(d):
+        return "{" + ", ".join(f"{k}: {v!r}" for k, v in d.items()) + "}"
+
+    try:
+        check_estimator_params(path, params)
+    except InputError as exc:
+        fail(f"methods.{name}.params", exc, f"params {shown(params)}")
+    if cv_params and (cv is None or cv_runs):  # cv_params act in CV fits only
+        try:
+            check_estimator_params(path, {**params, **cv_params})
+        except InputError as exc:
+            fail(f"methods.{name}.cv_params", exc, f"cv_params {shown(cv_params)} over params {shown(params)}")
+    for point in points:
+        if point:
+            try:
+                check_estimator_params(path, {**params, **point})
+            except InputError as exc:
+                fail(where_grid, exc, f"grid point {shown(point)} over params {shown(params)}")
+    if not sizes:
+        return
+    n_min = sizes[0]
+    for point in points:
+        try:
+            check_estimator_params(path, {**params, **point}, n_samples=n_min)
+        except InputError as exc:
+            key = where_grid if point else f"methods.{name}.params"
+            what = f"grid point {shown(point)} over params {shown(params)}" if point else f"params {shown(params)}"
+            fail(key, exc, f"{what}, fitted on the smallest n_train N = {n_min}")
+    if not cv_runs:
+        return
+    folds = int(cv.get("folds", 5))
+    if folds > n_min:
+        raise InputError(
+            f"config key 'cv.folds': {folds} folds of the smallest n_train N = {n_min} (method {name} is tuned by "
+            f"CV, cv.mode {cv.get('mode')!r}) would leave empty folds; expected cv.folds <= {n_min}"
+        )
+    n_fold = n_min - math.ceil(n_min / folds)
+    for point in points:
+        try:
+            check_estimator_params(path, {**params, **cv_params, **point}, n_samples=n_fold)
+        except InputError as exc:
+            key = f"methods.{name}.cv_params" if cv_params and not point else where_grid
+            fail(key, exc, f"the CV fits of grid point {shown(point)} over params {shown({**params, **cv_params})} "
+                           f"on training folds of {n_fold} frames (N = {n_min}, cv.folds = {folds})")
 
 
 def load_features(path):

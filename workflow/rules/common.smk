@@ -45,8 +45,9 @@ def _check_study_config():
     from bsrbench.study import check_method_settings, max_n_train
 
     methods = config["methods"]
-    # every method run must be buildable: its estimator imports and takes every configured parameter
-    check_method_settings(methods, config["run"])
+    # every method run must be buildable: its estimator imports, takes every configured parameter, and its own
+    # validation accepts every value and grid point on the smallest N (and CV training fold) it will be fitted on
+    check_method_settings(methods, config["run"], n_train=config["n_train"], cv=config["cv"])
     for key in ("trace_method",):
         m = config["report"].get(key)
         if m is not None and m not in methods:

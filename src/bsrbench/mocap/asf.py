@@ -10,6 +10,11 @@ Motion Capture File Formats", Game Developer, Jan. 1998, and in CMU's mocap.cs.c
 * Each bone has ``direction`` (unit vector in the world frame of the default pose), ``length``,
   ``axis ax ay az ORDER`` (the bone's local frame C), optional ``dof`` (subset of rx ry rz tx ty tz l, in
   the AMC value order) and ``limits`` (one interval per dof; read and kept, not enforced).
+* ``direction`` must be a unit vector up to the rounding of its printed digits (norm within
+  :data:`DIRECTION_TOLERANCE` of 1; it is then normalised exactly). A zero or markedly non-unit vector is an
+  error naming the file and line: the length is the ``length`` field, and common readers (CMU's ASF/AMC player,
+  AMCParser) multiply the vector as written by it, so such a file has no single meaning. ``limits`` intervals
+  must have ``lo <= hi``.
 
 Kinematics (the usual ASF/AMC rule): the bone's world rotation is ``G_b = G_parent C_b M_b C_b^-1`` with
 ``M_b`` the motion rotation built from the dof values, rotations applied in the listed order (``rx ry rz``
@@ -85,8 +90,34 @@ _LIMIT = re.compile(r"\(\s*([^\s()]+)\s+([^\s()]+)\s*\)")
 _INF = {"inf": float("inf"), "+inf": float("inf"), "-inf": -float("inf")}
 
 
+#: How far from 1 the norm of a bone's ``direction`` may be: the rounding of a unit vector printed with a few
+#: decimals (CMU's files print 6 and are unit to 1e-6).
+DIRECTION_TOLERANCE = 1e-3
+
+
+def _direction(path, lineno, tokens_):
+    """A bone's ``direction``: a unit vector (normalised exactly when within :data:`DIRECTION_TOLERANCE` of unit).
+
+    The spec gives the bone's length in its own field, and the common readers (CMU's C++ ASF/AMC player, the
+    AMCParser of CalciferZh) place the bone's end at ``length * direction`` with the vector as written, so a
+    markedly non-unit vector would make this reader and those disagree on the bone's length: it is an error,
+    like the zero vector (no direction at all)."""
+    d = np.array(_floats(path, lineno, tokens_, 3, "direction"))
+    nrm = float(np.linalg.norm(d))
+    shown = " ".join(tokens_)
+    if not nrm > 1e-6:
+        raise _fail(path, lineno, f"direction {shown} is the zero vector; expected a unit vector (the bone's "
+                                  f"direction in the default pose)")
+    if abs(nrm - 1.0) > DIRECTION_TOLERANCE:
+        unit = " ".join(f"{x:.6g}" for x in d / nrm)
+        raise _fail(path, lineno, f"direction {shown} has norm {nrm:.6g}; expected a unit vector (norm 1 within "
+                                  f"{DIRECTION_TOLERANCE:g}; the bone's length is the 'length' field), e.g. "
+                                  f"direction {unit}")
+    return d / nrm
+
+
 def _limits(path, lineno, body):
-    """The ``(lo hi)`` intervals of one limits line (commas already blanked); ``inf`` allowed."""
+    """The ``(lo hi)`` intervals of one limits line (commas already blanked); ``inf`` allowed; ``lo <= hi``."""
     out, pos = [], 0
     for m in _LIMIT.finditer(body):
         if body[pos : m.start()].strip():
@@ -97,6 +128,9 @@ def _limits(path, lineno, body):
                 lo_hi.append(_INF[x.lower()])
             else:
                 lo_hi += _floats(path, lineno, [x], 1, "limits")
+        if lo_hi[0] > lo_hi[1]:
+            raise _fail(path, lineno, f"limits ({m.group(1)} {m.group(2)}): the lower bound {lo_hi[0]:g} is above the "
+                                      f"upper bound {lo_hi[1]:g}; expected (lo hi) with lo <= hi")
         out.append(tuple(lo_hi))
         pos = m.end()
     if not out or body[pos:].strip():
@@ -228,10 +262,7 @@ def parse_asf(path):
                     raise _fail(path, lineno, f"name needs one word (the bone's name), found {len(t) - 1}")
                 bone["name"], bone["name_line"] = t[1], lineno
             elif key == "direction":
-                bone["direction"] = np.array(_floats(path, lineno, t[1:], 3, "direction"))
-                nrm = np.linalg.norm(bone["direction"])
-                if nrm > 0:
-                    bone["direction"] = bone["direction"] / nrm
+                bone["direction"] = _direction(path, lineno, t[1:])
             elif key == "length":
                 bone["length"] = _floats(path, lineno, t[1:], 1, "length")[0]
                 if bone["length"] < 0:

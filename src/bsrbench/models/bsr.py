@@ -71,7 +71,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     n_burn_in : int, default=700
         Sweeps discarded before samples are retained (the paper: 700). Must be < ``n_iter``.
     thin : int, default=10
-        Keep every ``thin``-th sweep after burn-in for prediction (1200/700/10 keeps 50 samples).
+        Keep every ``thin``-th sweep after burn-in for prediction (1200/700/10 keeps 50 samples). Must be
+        <= ``n_iter - n_burn_in`` (at least one retained sample).
     w_update : {"ess", "mh", "paper-printed-ratio", "paper-literal"}, default="ess"
         Update of the logits: elliptical slice sampling (Murray, Adams & MacKay 2010), the bound-based
         Metropolis-Hastings proposal of the paper (Appendix A) with the correct acceptance ratio, or two
@@ -198,7 +199,13 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         return tags
 
     # ------------------------------------------------------------------------------------------------------
-    def _check_params(self):
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them).
+
+        Called by :meth:`fit` and, before any job runs, by the study's configuration check
+        (:func:`bsrbench.study.check_method_settings`). Raises InputError naming the parameter, its value and
+        what was expected.
+        """
         _check_int("n_atoms", self.n_atoms, 1)
         _check_int("n_neighbors", self.n_neighbors, 1)
         n_iter = _check_int("n_iter", self.n_iter, 1)
@@ -209,10 +216,15 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 f"got n_burn_in={self.n_burn_in!r}"
             )
         _check_int("thin", self.thin, 1)
+        if self.thin > n_iter - self.n_burn_in:
+            raise InputError(
+                f"thin={self.thin!r} retains no sweep of the n_iter - n_burn_in = {n_iter - self.n_burn_in} after "
+                f"burn-in; expected thin <= {n_iter - self.n_burn_in} (every thin-th sweep after burn-in is kept)"
+            )
         _check_int("n_predict_sweeps", self.n_predict_sweeps, 1)
-        if self.w_update not in kern.W_UPDATES:
+        if not isinstance(self.w_update, str) or self.w_update not in kern.W_UPDATES:
             raise InputError(f"w_update must be one of {sorted(kern.W_UPDATES)}; got {self.w_update!r}")
-        if self.atom_update not in kern.ATOM_UPDATES:
+        if not isinstance(self.atom_update, str) or self.atom_update not in kern.ATOM_UPDATES:
             raise InputError(
                 f"atom_update must be one of {sorted(kern.ATOM_UPDATES)}; got {self.atom_update!r}"
             )
@@ -228,11 +240,20 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             if getattr(self, name) is not None:
                 _check_positive(name, getattr(self, name))
         _check_finite("w_prior_mean", self.w_prior_mean)
-        if self.noise not in kern.NOISE_MODELS:
+        if not isinstance(self.noise, str) or self.noise not in kern.NOISE_MODELS:
             raise InputError(f"noise must be one of {sorted(kern.NOISE_MODELS)}; got {self.noise!r}")
         if not isinstance(self.standardize, (bool, np.bool_)):
             raise InputError(f"standardize must be True or False; got {self.standardize!r}")
         check_input_scaling(self.input_scaling)
+        if n_samples is not None:
+            self._check_n_samples(n_samples)
+
+    def _check_n_samples(self, N):
+        if N < self.n_neighbors or N < 2:
+            raise InputError(
+                f"BayesianSR needs at least max(2, n_neighbors={self.n_neighbors}) training rows; "
+                f"got n_samples = {N}"
+            )
 
     def fit(self, X, Y):
         """Run the Gibbs sampler on training inputs X (N, Mx) and outputs Y (N, My) or (N,)."""
@@ -244,11 +265,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         check_finite_input(self, Y, "fit", name="Y")
         X, Y = validate_data(self, X, Y, multi_output=True, y_numeric=True, dtype=np.float64)
         N = X.shape[0]
-        if N < self.n_neighbors or N < 2:
-            raise InputError(
-                f"BayesianSR needs at least max(2, n_neighbors={self.n_neighbors}) training rows; "
-                f"got n_samples = {N}"
-            )
+        self._check_n_samples(N)
         self.y_ndim_ = Y.ndim
         Y2 = Y.reshape(N, -1)
         self.n_outputs_ = Y2.shape[1]
@@ -285,9 +302,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             w_mean=float(self.w_prior_mean), noise=self.noise,
         )
 
-        n_keep = (self.n_iter - self.n_burn_in) // self.thin
-        if n_keep < 1:
-            n_keep = 1  # always keep the last sweep
+        n_keep = (self.n_iter - self.n_burn_in) // self.thin  # >= 1 (_check_params)
         keep_at = set(self.n_iter - 1 - self.thin * np.arange(n_keep))
         Dx = np.empty((n_keep, K, Mx))
         Dy = np.empty((n_keep, K, My))

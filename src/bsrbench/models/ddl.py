@@ -165,8 +165,9 @@ class DDL(RegressorMixin, BaseEstimator):
     def _stack_x(self, X):
         return self.x_scaler_.transform(_normalize_rows(X, self.normalize)) / np.sqrt(X.shape[1])
 
-    def fit(self, X, Y):
-        X, Y = _validate_fit(self, X, Y)
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
         _check_number("n_components", self.n_components, low=1, integer=True)
         _check_number("alpha", self.alpha, low=0, low_open=True)
         _check_number("pose_weight", self.pose_weight, low=0, low_open=True)
@@ -174,6 +175,10 @@ class DDL(RegressorMixin, BaseEstimator):
         _check_choice("coding", self.coding, {"lasso", "omp"})
         _check_number("max_iter", self.max_iter, low=1, integer=True)
         _check_number("tol", self.tol, low=0, low_open=True)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        self._check_params(n_samples=X.shape[0])
         rng = np.random.default_rng(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
         self.n_outputs_ = Y.shape[1]
         Xn = _normalize_rows(X, self.normalize)

@@ -47,7 +47,11 @@ def _check_number(name, value, *, low=None, high=None, low_open=False, integer=F
 
 
 def _check_choice(name, value, choices):
-    if value not in choices:
+    try:
+        known = value in choices
+    except TypeError:  # unhashable (a list or mapping from a configuration file)
+        known = False
+    if not known:
         raise InputError(f"{name} must be one of {sorted(choices)}; got {value!r}")
     return value
 
@@ -153,10 +157,17 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
             raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
         return int(k)
 
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
+        _check_choice("weights", self.weights, {"uniform", "distance"})
+        _check_number("n_neighbors", self.n_neighbors, low=1, integer=True)
+        if n_samples is not None:
+            self._check_k(self.n_neighbors, n_samples)
+
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
-        _check_choice("weights", self.weights, {"uniform", "distance"})
-        self._check_k(self.n_neighbors, X.shape[0])
+        self._check_params(n_samples=X.shape[0])
         self.n_outputs_ = Y.shape[1]
         # one index for any k: the wrapped model is queried with the k of the call
         self.knn_ = KNeighborsRegressor(n_neighbors=1, weights=self.weights).fit(X, Y)
@@ -212,12 +223,17 @@ class RidgeRegressor(RegressorMixin, BaseEstimator):
     def __sklearn_tags__(self):
         return _regressor_tags(super().__sklearn_tags__())
 
-    def fit(self, X, Y):
-        X, Y = _validate_fit(self, X, Y)
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
         _check_number("alpha", self.alpha, low=0)
         _check_choice("standardize", self.standardize, {True, False})
-        self.n_outputs_ = Y.shape[1]
         check_input_scaling(self.input_scaling)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        self._check_params(n_samples=X.shape[0])
+        self.n_outputs_ = Y.shape[1]
         self.scaler_ = InputScaler(self.input_scaling).fit(X) if self.standardize else None
         Xs = self.scaler_.transform(X) if self.standardize else X
         self.ridge_ = Ridge(alpha=float(self.alpha)).fit(Xs, Y)

@@ -136,14 +136,19 @@ class RVM(RegressorMixin, BaseEstimator):
             K = np.column_stack([np.ones(X.shape[0]), K])
         return K
 
-    def fit(self, X, Y):
-        X, Y = _validate_fit(self, X, Y)
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
         _check_number("width_scale", self.width_scale, low=0, low_open=True)
         _check_choice("noise", self.noise, {"shared", "per_output"})
         _check_choice("normalize_y", self.normalize_y, {True, False})
         _check_number("max_iter", self.max_iter, low=1, integer=True)
         _check_number("tol", self.tol, low=0, low_open=True)
         _check_number("prune_threshold", self.prune_threshold, low=0, low_open=True)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        self._check_params(n_samples=X.shape[0])
         n, D = Y.shape
         self.n_outputs_ = D
         if self.normalize_y:

@@ -121,8 +121,9 @@ class SR(RegressorMixin, BaseEstimator):
     def __sklearn_tags__(self):
         return _regressor_tags(super().__sklearn_tags__())
 
-    def fit(self, X, Y):
-        X, Y = _validate_fit(self, X, Y)
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
         _check_number("alpha", self.alpha, low=0, low_open=True)
         _check_choice("positive", self.positive, {True, False})
         _check_choice("normalize", self.normalize, {"l2", "none"})
@@ -130,6 +131,10 @@ class SR(RegressorMixin, BaseEstimator):
         _check_choice("solver", self.solver, {"lasso", "lars"})
         _check_number("max_iter", self.max_iter, low=1, integer=True)
         _check_number("tol", self.tol, low=0, low_open=True)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
+        self._check_params(n_samples=X.shape[0])
         self.n_outputs_ = Y.shape[1]
         self.dictionary_ = _normalize_rows(X, self.normalize)
         self.Y_train_ = Y

@@ -126,15 +126,22 @@ class TGP(RegressorMixin, BaseEstimator):
             raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
         return None if k is None else int(k)
 
-    def fit(self, X, Y):
-        X, Y = _validate_fit(self, X, Y)
+    def _check_params(self, n_samples=None):
+        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
+        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
         for name in ("width_scale_x", "width_scale_y", "lambda_x", "lambda_y", "tol"):
             _check_number(name, getattr(self, name), low=0, low_open=True)
         _check_number("max_iter", self.max_iter, low=1, integer=True)
         _check_choice("init", self.init, {"knn", "ridge"})
         check_input_scaling(self.input_scaling)
+        _check_number("n_neighbors", self.n_neighbors, low=1, integer=True, none_ok=True)
+        if n_samples is not None:
+            self._check_k(self.n_neighbors, n_samples)
+
+    def fit(self, X, Y):
+        X, Y = _validate_fit(self, X, Y)
         n = X.shape[0]
-        self._check_k(self.n_neighbors, n)
+        self._check_params(n_samples=n)
         self.n_outputs_ = Y.shape[1]
         self.width_x_ = float(self.width_scale_x) * _median_distance(X)
         self.width_y_ = float(self.width_scale_y) * _median_distance(Y)

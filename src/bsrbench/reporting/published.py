@@ -38,8 +38,11 @@ def publish(src, dest):
     (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds)."""
     df = read_results(src)
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
-    with atomic_path(dest) as tmp:
-        df.to_csv(tmp, index=False)
+    try:
+        with atomic_path(dest) as tmp:
+            df.to_csv(tmp, index=False)
+    except OSError as exc:
+        raise DataFileError(dest, f"cannot write the published table ({exc.strerror or exc})") from exc
     return df
 
 
@@ -78,9 +81,19 @@ def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, label
 
 
 def update_readme(path, tables):
-    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``."""
+    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``.
+
+    Raises DataFileError naming ``path`` if it is missing, not UTF-8 text, lacks a source's markers, or cannot be
+    written (the file is then unchanged)."""
     path = Path(path)
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise DataFileError(
+            path, f"cannot read the file to update ({why}); expected an existing UTF-8 text file (the README) with "
+            f"the markers '<!-- results-table:<source> -->' ... '<!-- /results-table:<source> -->'"
+        ) from exc
     for source, table in tables.items():
         pat = re.compile(
             rf"(<!-- results-table:{re.escape(source)} -->\n).*?(\n<!-- /results-table:{re.escape(source)} -->)",
@@ -91,8 +104,11 @@ def update_readme(path, tables):
                 path, f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'"
             )
         text = pat.sub(lambda m: m.group(1) + table + m.group(2), text)
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
 
 
 def main(argv=None):

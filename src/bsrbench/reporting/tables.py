@@ -92,8 +92,8 @@ def read_results(path, design=None):
     """
     try:
         df = pd.read_csv(path)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(path, f"cannot read the aggregate table ({exc})") from exc
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(path, f"cannot read the aggregate table ({exc}); expected a CSV file") from exc
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}")
@@ -186,11 +186,19 @@ def read_paper_tables(path):
     """The paper's Tables I and II as rows (table, activity, n_train, method, mean_deg, std_deg), keyed by our ids."""
     try:
         df = pd.read_csv(path)
-    except (OSError, pd.errors.ParserError) as exc:
-        raise DataFileError(path, f"cannot read ({exc})") from exc
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(path, f"cannot read the paper's tables ({exc}); expected a CSV file") from exc
     need = {"table", "activity", "n_train", "method", "mean_deg", "std_deg"}
     if not need <= set(df.columns):
         raise DataFileError(path, f"needs columns {sorted(need)}; has {list(df.columns)}")
+    for col, expected in (("n_train", "a whole number"), ("mean_deg", "a finite number >= 0 (degrees)"),
+                          ("std_deg", "a finite number >= 0 (degrees)")):
+        v = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(v) | (v < 0) | ((v != np.round(v)) if col == "n_train" else False)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataFileError(path, f"row {i + 2}, column {col!r}: {df[col].iloc[i]!r}; expected {expected}")
+    df = df.astype({"n_train": int, "mean_deg": float, "std_deg": float})
     known = {paper_key(a) for t in PAPER_TABLES.values() for a in t}
     unknown = sorted(set(df["activity"]) - {a for a in df["activity"] if paper_key(a) in known})
     if unknown:
