@@ -34,6 +34,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.np.random import _constants as _zig
+from numba.np.random.generator_core import next_uint64 as _next_uint64
 
 from ..errors import InputError, SamplerError
 
@@ -174,28 +176,147 @@ def _backward_solve_t(L, Z, nb=48):
 
 
 # ----------------------------------------------------------------------------------------------------------
+# draws from the Generator's bit generator, bit for bit those of Generator.random() / .standard_normal()
+# ----------------------------------------------------------------------------------------------------------
+# NumPy's 256-layer ziggurat tables for standard normals (numpy/random/src/distributions; numba copies them):
+# the same tables and the same arithmetic give the same doubles from the same 64-bit outputs.
+_ZW = np.ascontiguousarray(_zig.wi_double, dtype=np.float64)
+_ZK = np.ascontiguousarray(_zig.ki_double).astype(np.int64)  # < 2^52: exact as int64
+_ZF = np.ascontiguousarray(_zig.fi_double, dtype=np.float64)
+_ZR = float(_zig.ziggurat_nor_r)
+_ZINV_R = float(_zig.ziggurat_nor_inv_r)
+
+
+@njit(cache=True, inline="always")
+def _rand(bg):
+    """A uniform on [0, 1): ``(next_uint64 >> 11) 2^-53``, which is ``Generator.random()`` for the PCG64 family,
+    SFC64 and Philox (numpy's ``next_double``), from one direct call of the bit generator (``rng.random()``
+    inside numba goes through a slower wrapper). ``bg`` is ``rng.bit_generator`` inside a jitted function."""
+    return np.float64(np.int64(_next_uint64(bg) >> np.uint64(11))) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def _randn(bg):
+    """A standard normal, bit for bit ``Generator.standard_normal()`` (NumPy's ziggurat: layer from bits 0-7,
+    sign from bit 8, abscissa from bits 9-60 of one 64-bit output; the sign is applied without a branch that
+    mispredicts half the time)."""
+    while True:
+        r = _next_uint64(bg)
+        idx = np.int64(r & np.uint64(0xFF))
+        r = r >> np.uint64(8)
+        sgn = 1.0 - 2.0 * np.float64(np.int64(r & np.uint64(1)))
+        rabs = np.int64((r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF))
+        x = sgn * (rabs * _ZW[idx])
+        if rabs < _ZK[idx]:
+            return x
+        if idx == 0:  # the tail beyond r (Marsaglia 1964), as NumPy does it
+            while True:
+                xx = -_ZINV_R * np.log1p(-_rand(bg))
+                yy = -np.log1p(-_rand(bg))
+                if yy + yy > xx * xx:
+                    return -(_ZR + xx) if (rabs >> 8) & 1 else _ZR + xx
+        elif (_ZF[idx - 1] - _ZF[idx]) * _rand(bg) + _ZF[idx] < np.exp(-0.5 * x * x):
+            return x
+
+
+@njit(cache=True)
+def _randn_fill(bg, out):
+    """Fill a C-contiguous array with standard normals in its memory order (= ``rng.standard_normal(shape)``)."""
+    flat = out.reshape(out.size)
+    for q in range(flat.shape[0]):
+        flat[q] = _randn(bg)
+
+
+@njit(cache=True)
+def draw_normals(rng, n):
+    """``n`` standard normals from the Generator by the kernels' own ziggurat (for tests)."""
+    out = np.empty(n)
+    _randn_fill(rng.bit_generator, out)
+    return out
+
+
+@njit(cache=True)
+def draw_uniforms(rng, n):
+    """``n`` uniforms from the Generator by the kernels' direct draw (for tests)."""
+    bg = rng.bit_generator
+    out = np.empty(n)
+    for q in range(n):
+        out[q] = _rand(bg)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
 # the updates (each mutates the state in place)
 # ----------------------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _adjacent_gram(D, lo, hi):
-    """g[k] = d_k . d_{k+1} over columns lo:hi (g[K-1] = 0): the look-ahead correction of the code update."""
-    K = D.shape[0]
-    g = np.zeros(K)
-    for k in range(K - 1):
-        g[k] = _dot(D[k, lo:hi], D[k + 1, lo:hi])
-    return g
+def _code_randoms(rng, N, K, Ut, Zt):
+    """The code update's random numbers in their documented order (per point i: K uniforms, then K standard
+    normals), stored atom-major: ``Ut[k, i]``, ``Zt[k, i]``."""
+    bg = rng.bit_generator
+    for i in range(N):
+        for k in range(K):
+            Ut[k, i] = _rand(bg)
+        for k in range(K):
+            Zt[k, i] = _randn(bg)
+
+
+@njit(cache=True, fastmath=_VEC, error_model="numpy")
+def _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms):
+    """The (b, s) block update of atoms k0 .. k0 + nb - 1 for all N points, vectorized over the points.
+
+    ``Ct[j, i]`` holds ``d_{k0+j} . r_i`` for the residual before this block; after atom k's draw the later
+    atoms' projections of point i are corrected by ``delta_ik d_k . d_j`` (``Gb`` = the block's Gram matrix), so
+    point i sees atom k's conditional given atoms < k exactly as in a point-by-point sweep. Writes the new codes
+    (``At`` alpha, ``Bt`` 0/1 as float, ``St`` s) and ``Dt[j, i] = alpha_old - alpha_new``; all arrays are
+    atom-major (K or nb rows, N columns). u < sigmoid(logit) is tested as ``u (1 + e) < (1 if logit >= 0 else e)``
+    with ``e = exp(-|logit|)`` (branch-free; the polynomial exp of _exp_neg, so the loop vectorizes).
+    """
+    N = Ct.shape[1]
+    for j in range(nb):
+        k = k0 + j
+        gain = g_xy / tau[k]
+        ht = 0.5 * tau[k]
+        hl = half_log[k]
+        nk = norms[k]
+        so = sd_on[k]
+        for i in range(N):
+            a_old = At[k, i]
+            mu = gain * (Ct[j, i] + a_old * nk)
+            logit = Wt[k, i] + hl + ht * mu * mu
+            e = _exp_neg(abs(logit))
+            on = Ut[k, i] * (1.0 + e) < (1.0 if logit >= 0.0 else e)
+            z = Zt[k, i]
+            s_on = mu + z * so
+            a_new = s_on if on else 0.0
+            Dt[j, i] = a_old - a_new
+            At[k, i] = a_new
+            Bt[k, i] = 1.0 if on else 0.0
+            St[k, i] = s_on if on else z * sd_off
+        for jj in range(j + 1, nb):
+            g = Gb[j, jj]
+            for i in range(N):
+                Ct[jj, i] += g * Dt[j, i]
+
+
+# atoms per block of the code update: two (N x M) x (M x _CODE_BLOCK) matrix products per block
+_CODE_BLOCK = 64
 
 
 @njit(cache=True)
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
-    """Joint (b_ki, s_ki) block update for every data point i and atom k (i outer, k inner).
+    """Joint (b_ki, s_ki) block update for every data point i and atom k (MODEL.md; i outer, k inner).
 
     With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
     ``s ~ N(0, 1/g_s)``. Draw order per point i: K uniforms (for b_i1..b_iK), then K standard normals (s).
-    The residual row r_i is updated in place by ``d_k (alpha_old - alpha_new)``: O(M) per (i, k).
-    Software-pipelined: ``d_{k+1} . r`` is computed before atom k's change ``delta`` is known and corrected
-    by ``delta d_k . d_{k+1}``, so the next dot product overlaps the current atom's scalar work.
+
+    Each point's atoms are visited in order k = 1..K, each conditioned on the point's atoms < k, with the
+    point's own random numbers: the chain is that of a point-by-point sweep. Codes of different points are
+    independent given D, so the points are processed together, in blocks of ``_CODE_BLOCK`` atoms: the
+    projections ``d_k . r_i`` of a block come from one matrix product ``D_blk R^T`` (BLAS-3), are corrected
+    within the block by the block's Gram matrix (:func:`_code_block`), and the residual is updated once per
+    block, ``R += Delta^T D_blk`` (Delta = alpha_old - alpha_new). O(N K M) per sweep, as matrix products.
+    Shapes: R (N, M), D (K, M), norms (K,), B (N, K) int8, S, W (N, K); all updated in place but D, W.
     """
     N, K = B.shape
     M = R.shape[1]
@@ -207,35 +328,32 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         tau[k] = g_s + g_xy * norms[k]
         half_log[k] = 0.5 * np.log(g_s / tau[k])
         sd_on[k] = 1.0 / np.sqrt(tau[k])
-    gnext = _adjacent_gram(D, 0, M)
-    U = np.empty(K)
-    Zn = np.empty(K)
+    Ut = np.empty((K, N))
+    Zt = np.empty((K, N))
+    _code_randoms(rng, N, K, Ut, Zt)
+    At = np.empty((K, N))
+    Wt = np.empty((K, N))
     for i in range(N):
-        # this point's random numbers up front: no opaque generator calls inside the atom loop
         for k in range(K):
-            U[k] = rng.random()
+            At[k, i] = S[i, k] if B[i, k] else 0.0
+            Wt[k, i] = W[i, k]
+    Bt = np.empty((K, N))
+    St = np.empty((K, N))
+    nbmax = min(_CODE_BLOCK, K)
+    Dt = np.empty((nbmax, N))
+    Rt = R.T
+    for k0 in range(0, K, nbmax):
+        k1 = min(k0 + nbmax, K)
+        nb = k1 - k0
+        Db = D[k0:k1]
+        Ct = Db @ Rt
+        Gb = Db @ Db.T
+        _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms)
+        R += Dt[:nb].T @ Db
+    for i in range(N):
         for k in range(K):
-            Zn[k] = rng.standard_normal()
-        proj_next = _dot_rows(R, i, D, 0, M)
-        for k in range(K):
-            proj = proj_next
-            if k + 1 < K:
-                proj_next = _dot_rows(R, i, D, k + 1, M)  # r without atom k's change (added below)
-            a_old = S[i, k] if B[i, k] else 0.0
-            mu = g_xy * (proj + a_old * norms[k]) / tau[k]
-            logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
-            # u < sigmoid(logit), branch-free (exp(-logit) = inf gives False, as it should for u > 0)
-            on = U[k] * (1.0 + np.exp(-logit)) < 1.0
-            z = Zn[k]
-            s_on = mu + z * sd_on[k]
-            s = s_on if on else z * sd_off
-            a_new = s_on if on else 0.0
-            delta = a_old - a_new
-            if delta != 0.0:
-                _axpy_rows(delta, D, k, R, i, M)
-                proj_next += delta * gnext[k]
-            B[i, k] = 1 if on else 0
-            S[i, k] = s
+            B[i, k] = 1 if Bt[k, i] != 0.0 else 0
+            S[i, k] = St[k, i]
 
 
 @njit(cache=True)
@@ -285,7 +403,8 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     A = _codes_from(B, S)
     G = A.T @ A
     AV = A.T @ V
-    E = rng.standard_normal((K, M))
+    E = np.empty((K, M))
+    _randn_fill(rng.bit_generator, E)
     for part in range(2):
         if part == 0:
             lo, hi, g, gn = 0, Mx, g_x, g_xy
@@ -320,7 +439,8 @@ def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
         g_ny = g_xy
     N, K = B.shape
     M = D.shape[1]
-    E = rng.standard_normal((K, M))
+    E = np.empty((K, M))
+    _randn_fill(rng.bit_generator, E)
     idx = np.empty(N, dtype=np.int64)
     a = np.empty(N)
     acc = np.empty(M)
@@ -540,14 +660,18 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     Sig = np.empty((K, N))
     _bound_terms(Zt, Wt, Lam, Sig, ratio == MH_LITERAL)
     Mu = Lam @ Sigma
-    Wp = Mu + rng.standard_normal((K, N)) @ Lw.T
+    Eps = np.empty((K, N))
+    _randn_fill(rng.bit_generator, Eps)
+    Wp = Mu + Eps @ Lw.T
     if w_mean != 0.0:
         Wp += w_mean
     Lamp = np.empty((K, N))
     Sigp = np.empty((K, N))
     _bound_terms(Zt, Wp, Lamp, Sigp, ratio == MH_LITERAL)
     Mup = Lamp @ Sigma if exact else Mu
-    U = rng.random(K)
+    U = np.empty(K)
+    for k in range(K):
+        U[k] = _rand(rng.bit_generator)
     accepted = 0
     for k in range(K):
         lr = 0.0
@@ -591,7 +715,10 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
     N, K = W.shape
     Zt = _signs_t(B)
     Wt = np.ascontiguousarray(W.T)
-    Nu = rng.standard_normal((K, N)) @ Lw.T
+    bg = rng.bit_generator
+    Eps = np.empty((K, N))
+    _randn_fill(bg, Eps)
+    Nu = Eps @ Lw.T
     wp = np.empty(N)
     two_pi = 2.0 * np.pi
     moved = 0
@@ -599,8 +726,8 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
         wk = Wt[k]
         zk = Zt[k]
         nk = Nu[k]
-        log_y = _sum_log_sigmoid(zk, wk) + np.log(rng.random())
-        theta = rng.random() * two_pi
+        log_y = _sum_log_sigmoid(zk, wk) + np.log(_rand(bg))
+        theta = _rand(bg) * two_pi
         lo = theta - two_pi
         hi = theta
         while True:
@@ -617,7 +744,7 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
             if hi - lo < 1e-300:  # cannot happen for a finite log-likelihood; guard against a hang
                 wp[:] = wk
                 break
-            theta = lo + rng.random() * (hi - lo)
+            theta = lo + _rand(bg) * (hi - lo)
         changed = False
         for i in range(N):
             if W[i, k] != wp[i]:
