@@ -24,9 +24,16 @@ Layout (all C-contiguous float64 unless noted):
 
 Every random draw comes from the ``numpy.random.Generator`` passed in (numba shares its bit generator with
 the Python object), in a fixed, documented order, so the plain NumPy reference ``tests/naive.py`` fed the
-same Generator reproduces the kernels draw for draw. Prediction uses a counter-based stream per test point
-(splitmix64 seeded by a hash of the point and a fitted seed; ziggurat normals), so a prediction does not depend
-on which other points are in the batch.
+same Generator reproduces the kernels draw for draw. Uniforms and normals are taken straight from the bit
+generator (``_rand``, ``_randn``), bit for bit what ``Generator.random()`` and ``.standard_normal()`` return.
+Prediction uses a counter-based stream per test point (splitmix64 seeded by a hash of the point and a fitted
+seed; ziggurat normals), so a prediction does not depend on which other points are in the batch (up to the
+rounding of the batch's matrix products, about 1e-15 relative).
+
+Speed (benchmarks/bench_bsr.py): the code update and prediction process all points together in blocks of
+atoms, with the projections and residual updates as matrix products (BLAS-3); each point still sees its atoms
+in order with its own random numbers, so the chain is that of a point-by-point sweep. Loops over elementwise
+formulas are written to vectorize (``_VEC`` flags, a libm-free exp, atom-major copies made by tiled transposes).
 """
 
 import math
@@ -51,9 +58,6 @@ W_UPDATES = {"mh": 0, "ess": 1, "paper-printed-ratio": 2, "paper-literal": 3}
 MH_EXACT, MH_PRINTED_RATIO, MH_LITERAL = 0, 1, 2
 NOISE_MODELS = {"shared": 0, "separate": 1}
 ATOM_UPDATES = {"block": 0, "single": 1}
-
-# Test points whose code sweeps are interleaved atom by atom in prediction.
-_PRED_BLOCK = 8
 
 # Above this logit, 1 + exp(-logit) rounds to 1 in float64, so "u < sigmoid(logit)" holds for every u in [0, 1):
 # prediction then skips the exp and the uniform (the reference in tests/naive.py does the same).
@@ -336,7 +340,9 @@ def _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on
 
 
 # atoms per block of the code update: two (N x M) x (M x _CODE_BLOCK) matrix products per block
-_CODE_BLOCK = 96
+_CODE_BLOCK = 64
+# atoms per block in prediction (more points per product than in a sweep: smaller blocks, fewer corrections)
+_PRED_BLOCK = 32
 
 
 @njit(cache=True)
@@ -1127,7 +1133,42 @@ def point_seeds(Xbits, seed):
     return out
 
 
-@njit(cache=True, fastmath=_VEC)
+@njit(cache=True, fastmath=_VEC, error_model="numpy")
+def _predict_block(Ct, Gb, At, Dt, Wt, streams, k0, nb, nx, gain, half_tau, half_log, sd_on):
+    """One sweep of the (b, s) block update of atoms k0 .. k0 + nb - 1 for every test point (prediction).
+
+    As :func:`_code_block`: ``Ct[j, t] = d^x_{k0+j} . r_t`` for the residual before the block, corrected within
+    the block by the block's Gram matrix ``Gb``; ``At`` (K, T) the codes, ``Dt[j, t] = alpha_old - alpha_new``.
+    Random numbers from each point's own splitmix64 stream (``streams[t]``), in the point's atom order: one
+    uniform unless the logit exceeds ``_LOGIT_SURE``, then one ziggurat normal if the atom is on.
+    """
+    T = Ct.shape[1]
+    for j in range(nb):
+        k = k0 + j
+        for t in range(T):
+            a_old = At[k, t]
+            mu = gain[k] * (Ct[j, t] + a_old * nx[k])
+            logit = Wt[k, t] + half_log[k] + half_tau[k] * mu * mu
+            st = streams[t]
+            on = logit > _LOGIT_SURE  # then P(on) rounds to 1: no uniform is drawn
+            if not on:
+                st, u = _uniform(st)
+                on = u * (1.0 + np.exp(-logit)) < 1.0  # u < sigmoid(logit)
+            if on:
+                st, z = _normal(st)
+                a_new = mu + z * sd_on[k]
+            else:
+                a_new = 0.0  # s of an inactive atom does not enter the prediction
+            streams[t] = st
+            At[k, t] = a_new
+            Dt[j, t] = a_old - a_new
+        for jj in range(j + 1, nb):
+            g = Gb[j, jj]
+            for t in range(T):
+                Ct[jj, t] += g * Dt[j, t]
+
+
+@njit(cache=True)
 def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll):
     """Posterior predictive draws of y for every test point and retained sample.
 
@@ -1136,21 +1177,25 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
     likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]`` (per atom
     one uniform unless the logit exceeds ``_LOGIT_SURE``, where P(on) is 1 in float64; then one ziggurat
-    normal if the atom is on), so a point's prediction does not depend on the
-    batch. Samples are the outer loop (one sample's dictionaries stay in cache for all test points); blocks
-    of ``_PRED_BLOCK`` test points are interleaved atom by atom, and the residual update of atom k is fused
-    with the projection on atom k + 1 (one pass over the residual per atom).
-    Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
+    normal if the atom is on), so a point's prediction does not depend on the batch (up to rounding). Each
+    point's atoms are visited in order within a sweep, as in a point-by-point loop; the points are processed
+    together, in blocks of ``_PRED_BLOCK`` atoms as in :func:`update_codes` (projections ``D^x_blk R^T`` and the
+    residual update ``R += Delta^T D^x_blk`` as matrix products, within-block corrections by the block's Gram
+    matrix).
+    Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,);
+    out_y (T, L, My) and out_ll (T, L) are written.
     """
     T, Mx = Xt.shape
     L, K, _ = Dx.shape
     My = out_y.shape[2]
     nj = nbr.shape[1]
-    P = _PRED_BLOCK
-    r = np.empty((P, Mx))  # residuals of a block of test points
-    alpha = np.empty((P, K))
-    wt = np.empty((P, K))
-    pn = np.empty(P)
+    nbmax = min(_PRED_BLOCK, K)
+    R = np.empty((T, Mx))
+    At = np.empty((K, T))
+    Wp = np.empty((T, K))
+    Wt = np.empty((K, T))
+    Dt = np.empty((nbmax, T))
+    Gbs = np.empty(((K + nbmax - 1) // nbmax, nbmax, nbmax))
     nx = np.empty(K)
     gain = np.empty(K)  # g_xy / tau_k
     half_tau = np.empty(K)
@@ -1160,7 +1205,7 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     for l in range(L):
         g_s = gs[l]
         g_xy = gxy[l]
-        Dxl = Dx[l]
+        Dxl = np.ascontiguousarray(Dx[l])
         for k in range(K):
             nx[k] = _dot_rows(Dxl, k, Dxl, k, Mx)
             tau = g_s + g_xy * nx[k]
@@ -1168,65 +1213,37 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
             half_tau[k] = 0.5 * tau
             half_log[k] = 0.5 * np.log(g_s / tau)
             sd_on[k] = 1.0 / np.sqrt(tau)
-        for t0 in range(0, T, P):
-            nb = min(P, T - t0)
-            for p in range(nb):
-                t = t0 + p
+        for t in range(T):
+            for k in range(K):
+                Wp[t, k] = 0.0
+            for q in range(nj):
                 for k in range(K):
-                    wt[p, k] = 0.0
-                for q in range(nj):
-                    for k in range(K):
-                        wt[p, k] += Ws[l, nbr[t, q], k]
-                for k in range(K):
-                    wt[p, k] /= nj
-                    alpha[p, k] = 0.0
-                for m in range(Mx):
-                    r[p, m] = Xt[t, m]
-            for _ in range(n_sweeps):
-                for p in range(nb):
-                    pn[p] = _dot_rows(Dxl, 0, r, p, Mx)
-                for k in range(K):
-                    for p in range(nb):
-                        t = t0 + p
-                        a_old = alpha[p, k]
-                        mu = gain[k] * (pn[p] + a_old * nx[k])
-                        logit = wt[p, k] + half_log[k] + half_tau[k] * mu * mu
-                        st = streams[t]
-                        on = logit > _LOGIT_SURE  # then P(on) rounds to 1: no uniform is drawn
-                        if not on:
-                            st, u = _uniform(st)
-                            on = u * (1.0 + np.exp(-logit)) < 1.0  # u < sigmoid(logit)
-                        if on:
-                            st, z = _normal(st)
-                            a_new = mu + z * sd_on[k]
-                        else:
-                            a_new = 0.0  # s of an inactive atom does not enter the prediction
-                        streams[t] = st
-                        alpha[p, k] = a_new
-                        delta = a_old - a_new
-                        if k + 1 < K:
-                            if delta != 0.0:  # r += delta d_k and the projection on d_{k+1}, in one pass
-                                acc = 0.0
-                                for m in range(Mx):
-                                    v = r[p, m] + delta * Dxl[k, m]
-                                    r[p, m] = v
-                                    acc += Dxl[k + 1, m] * v
-                                pn[p] = acc
-                            else:
-                                pn[p] = _dot_rows(Dxl, k + 1, r, p, Mx)
-                        elif delta != 0.0:
-                            _axpy_rows(delta, Dxl, k, r, p, Mx)
-            for p in range(nb):
-                t = t0 + p
-                for m in range(My):
-                    out_y[t, l, m] = 0.0
-                for k in range(K):
-                    a = alpha[p, k]
-                    if a != 0.0:
-                        for m in range(My):
-                            out_y[t, l, m] += a * Dy[l, k, m]
-                rr = _dot_rows(r, p, r, p, Mx)
-                out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
+                    Wp[t, k] += Ws[l, nbr[t, q], k]
+            for k in range(K):
+                Wp[t, k] /= nj
+            for m in range(Mx):
+                R[t, m] = Xt[t, m]
+        _transpose_into(Wp, Wt)
+        for k0 in range(0, K, nbmax):  # the Gram matrices of the atom blocks, once per sample
+            k1 = min(k0 + nbmax, K)
+            Gbs[k0 // nbmax, :k1 - k0, :k1 - k0] = Dxl[k0:k1] @ Dxl[k0:k1].T
+        At[:, :] = 0.0
+        Rt = R.T
+        for _ in range(n_sweeps):
+            for k0 in range(0, K, nbmax):
+                k1 = min(k0 + nbmax, K)
+                nb = k1 - k0
+                Db = Dxl[k0:k1]
+                Ct = Db @ Rt
+                _predict_block(Ct, Gbs[k0 // nbmax], At, Dt, Wt, streams, k0, nb, nx, gain, half_tau, half_log,
+                               sd_on)
+                R += Dt[:nb].T @ Db
+        Yl = At.T @ np.ascontiguousarray(Dy[l])
+        for t in range(T):
+            for m in range(My):
+                out_y[t, l, m] = Yl[t, m]
+            rr = _dot_rows(R, t, R, t, Mx)
+            out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
 
 
 @njit(cache=True)
