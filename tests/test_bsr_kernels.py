@@ -57,6 +57,20 @@ def test_codes_match_naive(seed):
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
+@pytest.mark.parametrize("K", [kern._CODE_BLOCK + 6, 2 * kern._CODE_BLOCK])
+def test_codes_blocked_over_atoms_match_naive(K):
+    """More atoms than one block of the code update (a full and a partial block, and two full ones): the
+    between-block residual updates and within-block Gram corrections give the point-by-point chain."""
+    s1, data, _ = _problem(9, N=13, K=K, Mx=6, My=3)
+    s2 = _copy(s1)
+    p = s1.prec
+    assert 0.05 < s1.B.mean() < 0.95  # both branches of the update are exercised
+    kern.update_codes(s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(21))
+    naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(21))
+    _assert_states_close(s1, s2)
+    np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
+
+
 @pytest.mark.parametrize("My", [3, 0])
 def test_atoms_match_naive(My):
     s1, data, _ = _problem(3, My=My)
@@ -226,6 +240,23 @@ def test_predict_kernel_matches_naive():
     sub_y, _ = np.empty((1, L, My)), np.empty((1, L))
     kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, 4, seeds[2:3], sub_y, np.empty((1, L)))
     np.testing.assert_allclose(sub_y[0], out_y[2], rtol=1e-12, atol=1e-14)
+
+
+def test_predict_kernel_blocked_over_atoms_matches_naive():
+    """More atoms than one block of the prediction kernel (a full and a partial block)."""
+    rng = np.random.default_rng(12)
+    L, K, Mx, My, N, T, j = 2, kern._PRED_BLOCK + 5, 6, 2, 9, 4, 3
+    Dx, Dy = rng.standard_normal((L, K, Mx)) * 0.5, rng.standard_normal((L, K, My))
+    Ws = rng.standard_normal((L, N, K))
+    gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
+    Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
+    nbr = kern.nearest_neighbours(Xt, Xtr, j)
+    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(5))
+    out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
+    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, 3, seeds, out_y, out_ll)
+    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 3, 5)
+    np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
 
 
 def test_predict_prior_codes_matches_naive():
