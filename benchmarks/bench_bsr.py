@@ -1,7 +1,9 @@
 """Speed of the BayesianSR Gibbs sampler and its prediction, on one core; prints Markdown tables.
 
-Everything is timed in one run (wall clock; median over repeats), the plain NumPy reference (tests/naive.py)
-included, so that ratios compare like with like (timings on a shared machine vary 20-30% from run to run):
+Everything is timed in one run (median over repeats of the calling thread's CPU time, which on a shared machine
+excludes the time other processes hold the core; BLAS runs single-threaded in that thread; wall-clock medians go
+to the CSV), the plain NumPy reference (tests/naive.py) included, so that ratios compare like with like
+(timings on a shared machine vary 20-30% from run to run):
   1. the sweep over N in {30, 60, 100, 200} x K in {64, 128, 196, 256} (Mx = 100, My = 57), for the default
      sweep (elliptical slice logits, block atoms) and the single-site atom variant, each with the NumPy
      reference's time and the speed-up;
@@ -78,15 +80,22 @@ def problem(N, K, seed=0, warmup=5, noise="shared"):
     return state, data, hyper, rng, (Xrest - X.mean(0)) / sx
 
 
-def timed(fn, repeats):
-    """Median wall time (s) of ``repeats`` calls, after one untimed call (compilation, caches)."""
+WALL = {}  # wall-clock medians of the last timing per label, for the CSV
+
+
+def timed(fn, repeats, label=None):
+    """Median CPU time (s) of the calling thread over ``repeats`` calls, after one untimed call (compilation,
+    caches); the median wall time is kept in WALL[label]."""
     fn()
-    wall = []
+    cpu, wall = [], []
     for _ in range(repeats):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         fn()
+        cpu.append(time.thread_time() - c)
         wall.append(time.perf_counter() - t)
-    return float(np.median(wall))
+    if label is not None:
+        WALL[label] = float(np.median(wall))
+    return float(np.median(cpu))
 
 
 def copy_state(s):
@@ -98,9 +107,10 @@ def sweep_times(N, K, w_update, atom_update, reps, naive_reps, naive, noise="sha
     copy per repeat (its sweep is exact too, so the state stays realistic)."""
     state, data, hyper, rng, _ = problem(N, K, warmup=2, noise=noise)
     ref_state = copy_state(state)
-    t_k = timed(lambda: kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update), reps)
+    t_k = timed(lambda: kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update), reps, "kernel")
     ref_rng = np.random.default_rng(1)
-    t_n = timed(lambda: naive.gibbs_sweep(ref_state, data, hyper, ref_rng, w_update, atom_update), naive_reps)
+    t_n = timed(lambda: naive.gibbs_sweep(ref_state, data, hyper, ref_rng, w_update, atom_update), naive_reps,
+                "naive")
     return t_k, t_n
 
 
@@ -132,7 +142,8 @@ def main(argv=None):
     _, _, _, source = load_data(10)
     print(f"# bench_bsr {args.label}\n\ndata: {source}; kernels: {kern.__file__}; threads: "
           f"NUMBA={os.environ['NUMBA_NUM_THREADS']} BLAS={os.environ['OPENBLAS_NUM_THREADS']}; "
-          f"kernel sweeps: median of {reps}; reference: median of {naive_reps}")
+          f"times: the thread's CPU time, kernel sweeps median of {reps}, reference median of {naive_reps}; "
+          f"load average at the start: {os.getloadavg()[0]:.2f}")
 
     # 1. the sweep grid, default and single-site
     for atom_update, title in (("block", "default sweep (ESS logits, block atoms)"),
@@ -143,7 +154,8 @@ def main(argv=None):
             for k in KS:
                 t_k, t_n = sweep_times(n, k, "ess", atom_update, reps, naive_reps, naive)
                 rows.append(dict(section="grid", N=n, K=k, w_update="ess", atom_update=atom_update,
-                                 ms=1e3 * t_k, naive_ms=1e3 * t_n))
+                                 ms=1e3 * t_k, naive_ms=1e3 * t_n, wall_ms=1e3 * WALL["kernel"],
+                                 naive_wall_ms=1e3 * WALL["naive"]))
                 cells.append(f"{1e3 * t_k:.2f} ms ({t_n / t_k:.0f}x)")
             table.append(cells)
         print(f"\n## 1. ms per sweep, {title}: N (rows) x K (columns), speed-up over the NumPy reference\n")
@@ -156,7 +168,7 @@ def main(argv=None):
                           ("mh", "single", "shared"), ("ess", "block", "separate"), ("ess", "single", "separate")):
         t_k, t_n = sweep_times(N, K, wu, au, reps, naive_reps, naive, noise)
         rows.append(dict(section="variant", N=N, K=K, w_update=wu, atom_update=au, noise=noise, ms=1e3 * t_k,
-                         naive_ms=1e3 * t_n))
+                         naive_ms=1e3 * t_n, wall_ms=1e3 * WALL["kernel"], naive_wall_ms=1e3 * WALL["naive"]))
         table.append([wu, au, noise, f"{1e3 * t_k:.2f}", f"{1e3 * t_n:.0f}", f"{t_n / t_k:.0f}x"])
     print(f"\n## 2. exact sweep variants at N = {N}, K = {K}\n")
     print(markdown(["logits", "atoms", "noise", "ms", "reference ms", "speed-up"], table))
@@ -187,10 +199,10 @@ def main(argv=None):
     }
     table = []
     for name, (fn, flops, formula, shape) in parts.items():
-        t = timed(fn, reps)
+        t = timed(fn, reps, "part")
         peak = dgemm_rate(*shape, reps)
-        rows.append(dict(section="part", N=N, K=K, w_update=name, ms=1e3 * t, gflops=flops / t / 1e9,
-                         dgemm_gflops=peak))
+        rows.append(dict(section="part", N=N, K=K, w_update=name, ms=1e3 * t, wall_ms=1e3 * WALL["part"],
+                         gflops=flops / t / 1e9, dgemm_gflops=peak))
         table.append([name, f"{1e3 * t:.3f}", f"{flops / 1e6:.1f}", f"{flops / t / 1e9:.1f}",
                       f"{peak:.1f} ({shape[0]}x{shape[1]} @ {shape[1]}x{shape[2]})", f"{flops / t / 1e9 / peak:.0%}",
                       formula])
@@ -217,10 +229,10 @@ def main(argv=None):
         seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(3))
         kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, np.empty((T, L, MY)), np.empty((T, L)))
 
-    t = timed(predict, 3 if args.quick else 7)
-    rows.append(dict(section="predict", N=N, K=K, ms=1e3 * t))
+    t = timed(predict, 3 if args.quick else 7, "predict")
+    rows.append(dict(section="predict", N=N, K=K, ms=1e3 * t, wall_ms=1e3 * WALL["predict"]))
     print(f"\n## 4. prediction of {T} points, {L} samples x {n_sweeps} code sweeps, K = {K}, N = {N}: "
-          f"{t:.2f} s (median of {3 if args.quick else 7})")
+          f"{t:.2f} s CPU, {WALL['predict']:.2f} s wall (median of {3 if args.quick else 7})")
 
     out = Path(args.out)
     with atomic_path(out) as tmp:
