@@ -139,11 +139,13 @@ def main(argv=None):
     reps = 9 if args.quick else 25
     naive_reps = 1 if args.quick else 3
     rows = []
+    # as BayesianSR.fit does (older kernels do not have it: timed as their fit ran them)
+    kept = kern.keep_freed_memory() if hasattr(kern, "keep_freed_memory") else "n/a"
     _, _, _, source = load_data(10)
     print(f"# bench_bsr {args.label}\n\ndata: {source}; kernels: {kern.__file__}; threads: "
           f"NUMBA={os.environ['NUMBA_NUM_THREADS']} BLAS={os.environ['OPENBLAS_NUM_THREADS']}; "
           f"times: the thread's CPU time, kernel sweeps median of {reps}, reference median of {naive_reps}; "
-          f"load average at the start: {os.getloadavg()[0]:.2f}")
+          f"load average at the start: {os.getloadavg()[0]:.2f}; keep_freed_memory: {kept}")
 
     # 1. the sweep grid, default and single-site
     for atom_update, title in (("block", "default sweep (ESS logits, block atoms)"),
