@@ -1,10 +1,12 @@
 """BSR kernels: equal to the NumPy reference draw for draw, and each conditional equal to a brute-force one."""
 
 import math
+import sys
 
 import naive
 import numpy as np
 import pytest
+from numba import njit
 from scipy import stats
 from scipy.special import expit
 
@@ -53,6 +55,20 @@ def test_codes_match_naive(seed):
     naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(seed + 10))
     _assert_states_close(s1, s2)
     # the in-place residual equals a fresh one
+    np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
+
+
+@pytest.mark.parametrize("K", [kern._CODE_BLOCK + 6, 2 * kern._CODE_BLOCK])
+def test_codes_blocked_over_atoms_match_naive(K):
+    """More atoms than one block of the code update (a full and a partial block, and two full ones): the
+    between-block residual updates and within-block Gram corrections give the point-by-point chain."""
+    s1, data, _ = _problem(9, N=13, K=K, Mx=6, My=3)
+    s2 = _copy(s1)
+    p = s1.prec
+    assert 0.05 < s1.B.mean() < 0.95  # both branches of the update are exercised
+    kern.update_codes(s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(21))
+    naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(21))
+    _assert_states_close(s1, s2)
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
@@ -220,10 +236,28 @@ def test_predict_kernel_matches_naive():
     ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 4, 123)
     np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
-    # a point's stream does not depend on the batch
+    # a point's stream does not depend on the batch: the same draws alone as in a batch, up to the rounding of
+    # the batch's matrix products
     sub_y, _ = np.empty((1, L, My)), np.empty((1, L))
     kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, 4, seeds[2:3], sub_y, np.empty((1, L)))
-    np.testing.assert_array_equal(sub_y[0], out_y[2])
+    np.testing.assert_allclose(sub_y[0], out_y[2], rtol=1e-12, atol=1e-14)
+
+
+def test_predict_kernel_blocked_over_atoms_matches_naive():
+    """More atoms than one block of the prediction kernel (a full and a partial block)."""
+    rng = np.random.default_rng(12)
+    L, K, Mx, My, N, T, j = 2, kern._PRED_BLOCK + 5, 6, 2, 9, 4, 3
+    Dx, Dy = rng.standard_normal((L, K, Mx)) * 0.5, rng.standard_normal((L, K, My))
+    Ws = rng.standard_normal((L, N, K))
+    gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
+    Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
+    nbr = kern.nearest_neighbours(Xt, Xtr, j)
+    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(5))
+    out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
+    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, 3, seeds, out_y, out_ll)
+    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 3, 5)
+    np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
 
 
 def test_predict_prior_codes_matches_naive():
@@ -273,10 +307,11 @@ def test_vectorizable_log_sigmoid_sum_is_exact():
     against NumPy/math in float64 (within a few ulps), over the whole range including |x| past the clamp and
     N above one logged product of _LOG_CHUNK terms."""
     a = np.concatenate([np.linspace(0.0, 45.0, 4501), np.linspace(45.0, 720.0, 2701), [1e-300, 36.9, 37.1]])
-    got = np.array([kern._exp_neg.py_func(x) for x in a])
+    exp_neg, sig_pair = njit(lambda v: kern._exp_neg(v)), njit(lambda v: kern._sig_pair(v))  # compiled code
+    got = np.array([exp_neg(x) for x in a])
     np.testing.assert_allclose(got, np.exp(-np.minimum(a, kern._EXP_CLAMP)), rtol=5e-16, atol=0)
     x = np.concatenate([-a, a])
-    pairs = np.array([kern._sig_pair.py_func(v) for v in x])
+    pairs = np.array([sig_pair(v) for v in x])
     np.testing.assert_allclose(pairs[:, 0], expit(np.clip(x, -708, 708)), rtol=1e-15, atol=0)
     np.testing.assert_allclose(pairs[:, 1], expit(-np.clip(x, -708, 708)), rtol=1e-15, atol=0)
     rng = np.random.default_rng(5)
@@ -314,6 +349,55 @@ def test_ziggurat_normals_are_standard_normal():
         p = 2 * stats.norm.sf(edge)
         count = np.count_nonzero(np.abs(z) > edge)
         assert abs(count - p * z.size) < 4 * np.sqrt(p * (1 - p) * z.size) + 1, (edge, count, p * z.size)
+
+
+def test_sampler_draws_equal_the_generators_bit_for_bit():
+    """The sampler's direct draws from the bit generator are Generator.random() and .standard_normal() exactly:
+    3 million normals cover NumPy's wedge (about 1%) and tail (about 0.03%) branches thousands of times each,
+    and the stream stays in step (the next draw of either Generator agrees)."""
+    for bitgen in (np.random.PCG64, np.random.SFC64, np.random.Philox):
+        r1, r2 = np.random.Generator(bitgen(11)), np.random.Generator(bitgen(11))
+        z = kern.draw_normals(r1, 3_000_000)
+        np.testing.assert_array_equal(z, r2.standard_normal(3_000_000))
+        assert np.count_nonzero(np.abs(z) > kern._ZR) > 300  # the tail branch ran
+        np.testing.assert_array_equal(kern.draw_uniforms(r1, 1000), r2.random(1000))
+        assert r1.standard_normal() == r2.standard_normal()
+
+
+_FAULTS_PER_CODE_UPDATE = """
+import resource, sys
+import numpy as np
+from bsrbench.models import _bsr_kernels as kern
+if sys.argv[1] == "keep":
+    assert kern.keep_freed_memory()
+rng = np.random.default_rng(0)
+N, K, M = 200, 256, 157
+D, W = rng.standard_normal((K, M)) / 10, rng.standard_normal((N, K))
+B, S = (rng.random((N, K)) < 0.4).astype(np.int8), rng.standard_normal((N, K))
+R = rng.standard_normal((N, M))
+norms = np.einsum("km,km->k", D, D)
+kern.update_codes(R, D, norms, B, S, W, 1.0, 10.0, rng)
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(10):
+    kern.update_codes(R, D, norms, B, S, W, 1.0, 10.0, rng)
+print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / 10)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
+def test_keep_freed_memory_stops_page_faults_of_the_temporaries():
+    """In a fresh process the code update at N = 200, K = 256 page-faults its few MB of temporaries in again at
+    every call (glibc unmaps or trims them when freed); after keep_freed_memory() it reuses them."""
+    import subprocess
+
+    def faults(mode):
+        out = subprocess.run([sys.executable, "-c", _FAULTS_PER_CODE_UPDATE, mode], capture_output=True, text=True,
+                             check=True)
+        return float(out.stdout.split()[-1])
+
+    default, kept = faults("default"), faults("keep")
+    assert default > 200, default  # the setting is needed (about 570 faults per call here)
+    assert kept < 20, kept
 
 
 # ---------------------------------------------------------------------------------------------------------

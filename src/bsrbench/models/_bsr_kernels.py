@@ -24,16 +24,30 @@ Layout (all C-contiguous float64 unless noted):
 
 Every random draw comes from the ``numpy.random.Generator`` passed in (numba shares its bit generator with
 the Python object), in a fixed, documented order, so the plain NumPy reference ``tests/naive.py`` fed the
-same Generator reproduces the kernels draw for draw. Prediction uses a counter-based stream per test point
-(splitmix64 seeded by a hash of the point and a fitted seed; ziggurat normals), so a prediction does not depend
-on which other points are in the batch.
+same Generator reproduces the kernels draw for draw. Uniforms and normals are taken straight from the bit
+generator (``_rand``, ``_randn``), bit for bit what ``Generator.random()`` and ``.standard_normal()`` return.
+Prediction uses a counter-based stream per test point (splitmix64 seeded by a hash of the point and a fitted
+seed; ziggurat normals), so a prediction does not depend on which other points are in the batch (up to the
+rounding of the batch's matrix products, about 1e-15 relative).
+
+Speed (benchmarks/bench_bsr.py): the code update and prediction process all points together in blocks of
+atoms, with the projections and residual updates as matrix products (BLAS-3); each point still sees its atoms
+in order with its own random numbers, so the chain is that of a point-by-point sweep. Loops over elementwise
+formulas are written to vectorize (``_VEC`` flags, a libm-free exp, atom-major copies made by tiled transposes).
 """
 
+import ctypes
+import ctypes.util
 import math
 from typing import NamedTuple
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import types
+from numba.extending import intrinsic
+from numba.np.random import _constants as _zig
+from numba.np.random.generator_core import next_uint64 as _next_uint64
 
 from ..errors import InputError, SamplerError
 
@@ -47,12 +61,34 @@ MH_EXACT, MH_PRINTED_RATIO, MH_LITERAL = 0, 1, 2
 NOISE_MODELS = {"shared": 0, "separate": 1}
 ATOM_UPDATES = {"block": 0, "single": 1}
 
-# Test points whose code sweeps are interleaved atom by atom in prediction.
-_PRED_BLOCK = 8
-
 # Above this logit, 1 + exp(-logit) rounds to 1 in float64, so "u < sigmoid(logit)" holds for every u in [0, 1):
 # prediction then skips the exp and the uniform (the reference in tests/naive.py does the same).
 _LOGIT_SURE = 37.0
+
+
+# glibc's mallopt parameters (malloc.h)
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def keep_freed_memory(mmap_threshold=1 << 26, trim_threshold=1 << 27):
+    """Let glibc keep freed memory in the process (for a process that runs sampler sweeps).
+
+    A sweep allocates a few MB of temporaries (atom-major copies, products, random numbers) and frees them. By
+    default glibc serves blocks above 128 kB by mmap and trims the heap top when it frees them, so every sweep
+    touches fresh pages again: about 570 page faults, 2-3 ms, in the code update alone at N = 200, K = 256.
+    This sets glibc's mmap threshold to ``mmap_threshold`` bytes and its trim threshold to ``trim_threshold``
+    (``mallopt``; fixed values also stop glibc's dynamic adjustment), for the whole process: freed memory up to
+    that size stays mapped. Returns whether both settings took (False without glibc, e.g. on macOS or musl;
+    nothing else changes). Called by :meth:`BayesianSR.fit` and by benchmarks/bench_bsr.py.
+    """
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    return bool(mallopt(_M_MMAP_THRESHOLD, int(mmap_threshold))) and bool(mallopt(_M_TRIM_THRESHOLD,
+                                                                                      int(trim_threshold)))
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -174,28 +210,183 @@ def _backward_solve_t(L, Z, nb=48):
 
 
 # ----------------------------------------------------------------------------------------------------------
+# draws from the Generator's bit generator, bit for bit those of Generator.random() / .standard_normal()
+# ----------------------------------------------------------------------------------------------------------
+# NumPy's 256-layer ziggurat tables for standard normals (numpy/random/src/distributions; numba copies them):
+# the same tables and the same arithmetic give the same doubles from the same 64-bit outputs.
+_ZW = np.ascontiguousarray(_zig.wi_double, dtype=np.float64)
+_ZK = np.ascontiguousarray(_zig.ki_double).astype(np.int64)  # < 2^52: exact as int64
+_ZF = np.ascontiguousarray(_zig.fi_double, dtype=np.float64)
+_ZR = float(_zig.ziggurat_nor_r)
+_ZINV_R = float(_zig.ziggurat_nor_inv_r)
+
+
+@njit(cache=True, inline="always")
+def _rand(bg):
+    """A uniform on [0, 1): ``(next_uint64 >> 11) 2^-53``, which is ``Generator.random()`` for the PCG64 family,
+    SFC64 and Philox (numpy's ``next_double``), from one direct call of the bit generator (``rng.random()``
+    inside numba goes through a slower wrapper). ``bg`` is ``rng.bit_generator`` inside a jitted function."""
+    return np.float64(np.int64(_next_uint64(bg) >> np.uint64(11))) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def _randn_slow(bg, r):
+    """The ziggurat's rare branches for the 64-bit output ``r`` whose fast test failed (about 1.2% of draws:
+    the wedge of its layer, or the tail beyond r for layer 0), then new outputs until one is accepted."""
+    while True:
+        idx = np.int64(r & np.uint64(0xFF))
+        r = r >> np.uint64(8)
+        sgn = 1.0 - 2.0 * np.float64(np.int64(r & np.uint64(1)))
+        rabs = np.int64((r >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF))
+        x = sgn * (rabs * _ZW[idx])
+        if rabs < _ZK[idx]:
+            return x
+        if idx == 0:  # the tail beyond r (Marsaglia 1964), as NumPy does it
+            while True:
+                xx = -_ZINV_R * np.log1p(-_rand(bg))
+                yy = -np.log1p(-_rand(bg))
+                if yy + yy > xx * xx:
+                    return -(_ZR + xx) if (rabs >> 8) & 1 else _ZR + xx
+        elif (_ZF[idx - 1] - _ZF[idx]) * _rand(bg) + _ZF[idx] < np.exp(-0.5 * x * x):
+            return x
+        r = _next_uint64(bg)
+
+
+@njit(cache=True, inline="always")
+def _randn(bg):
+    """A standard normal, bit for bit ``Generator.standard_normal()`` (NumPy's ziggurat: layer from bits 0-7,
+    sign from bit 8, abscissa from bits 9-60 of one 64-bit output). The accepted-at-once case (98.8%) is inlined
+    and branch-free in the sign; the rest is :func:`_randn_slow`."""
+    r = _next_uint64(bg)
+    idx = np.int64(r & np.uint64(0xFF))
+    rs = r >> np.uint64(8)
+    rabs = np.int64((rs >> np.uint64(1)) & np.uint64(0x000FFFFFFFFFFFFF))
+    if rabs < _ZK[idx]:
+        return (1.0 - 2.0 * np.float64(np.int64(rs & np.uint64(1)))) * (rabs * _ZW[idx])
+    return _randn_slow(bg, r)
+
+
+@njit(cache=True)
+def _randn_fill(bg, out):
+    """Fill a C-contiguous array with standard normals in its memory order (= ``rng.standard_normal(shape)``)."""
+    flat = out.reshape(out.size)
+    for q in range(flat.shape[0]):
+        flat[q] = _randn(bg)
+
+
+@njit(cache=True)
+def draw_normals(rng, n):
+    """``n`` standard normals from the Generator by the kernels' own ziggurat (for tests)."""
+    out = np.empty(n)
+    _randn_fill(rng.bit_generator, out)
+    return out
+
+
+@njit(cache=True)
+def draw_uniforms(rng, n):
+    """``n`` uniforms from the Generator by the kernels' direct draw (for tests)."""
+    bg = rng.bit_generator
+    out = np.empty(n)
+    for q in range(n):
+        out[q] = _rand(bg)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
 # the updates (each mutates the state in place)
 # ----------------------------------------------------------------------------------------------------------
+# Square tiles of the cache-friendly transposes between point-major (N, K) and atom-major (K, N) arrays
+_TILE = 16
+
+
 @njit(cache=True)
-def _adjacent_gram(D, lo, hi):
-    """g[k] = d_k . d_{k+1} over columns lo:hi (g[K-1] = 0): the look-ahead correction of the code update."""
-    K = D.shape[0]
-    g = np.zeros(K)
-    for k in range(K - 1):
-        g[k] = _dot(D[k, lo:hi], D[k + 1, lo:hi])
-    return g
+def _transpose_into(src, dst):
+    """dst[k, i] = src[i, k] tile by tile (a plain double loop writes dst with a stride of N doubles)."""
+    N, K = src.shape
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for k in range(k0, k1):
+                for i in range(i0, i1):
+                    dst[k, i] = src[i, k]
+
+
+@njit(cache=True)
+def _code_randoms(rng, N, K, Ut, Zt):
+    """The code update's random numbers in their documented order (per point i: K uniforms, then K standard
+    normals), stored atom-major: ``Ut[k, i]``, ``Zt[k, i]``."""
+    bg = rng.bit_generator
+    U = np.empty((N, K))
+    Z = np.empty((N, K))
+    for i in range(N):
+        for k in range(K):
+            U[i, k] = _rand(bg)
+        for k in range(K):
+            Z[i, k] = _randn(bg)
+    _transpose_into(U, Ut)
+    _transpose_into(Z, Zt)
+
+
+@njit(cache=True, fastmath=_VEC, error_model="numpy")
+def _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms):
+    """The (b, s) block update of atoms k0 .. k0 + nb - 1 for all N points, vectorized over the points.
+
+    ``Ct[j, i]`` holds ``d_{k0+j} . r_i`` for the residual before this block; after atom k's draw the later
+    atoms' projections of point i are corrected by ``delta_ik d_k . d_j`` (``Gb`` = the block's Gram matrix), so
+    point i sees atom k's conditional given atoms < k exactly as in a point-by-point sweep. Writes the new codes
+    (``At`` alpha, ``Bt`` 0/1 as float, ``St`` s) and ``Dt[j, i] = alpha_old - alpha_new``; all arrays are
+    atom-major (K or nb rows, N columns). u < sigmoid(logit) is tested as ``u (1 + e) < (1 if logit >= 0 else e)``
+    with ``e = exp(-|logit|)`` (branch-free; the polynomial exp of _exp_neg, so the loop vectorizes).
+    """
+    N = Ct.shape[1]
+    for j in range(nb):
+        k = k0 + j
+        gain = g_xy / tau[k]
+        ht = 0.5 * tau[k]
+        hl = half_log[k]
+        nk = norms[k]
+        so = sd_on[k]
+        for i in range(N):
+            a_old = At[k, i]
+            mu = gain * (Ct[j, i] + a_old * nk)
+            logit = Wt[k, i] + hl + ht * mu * mu
+            e = _exp_neg(abs(logit))
+            on = Ut[k, i] * (1.0 + e) < (1.0 if logit >= 0.0 else e)
+            z = Zt[k, i]
+            s_on = mu + z * so
+            a_new = s_on if on else 0.0
+            Dt[j, i] = a_old - a_new
+            At[k, i] = a_new
+            Bt[k, i] = 1.0 if on else 0.0
+            St[k, i] = s_on if on else z * sd_off
+        for jj in range(j + 1, nb):
+            g = Gb[j, jj]
+            for i in range(N):
+                Ct[jj, i] += g * Dt[j, i]
+
+
+# atoms per block of the code update: two (N x M) x (M x _CODE_BLOCK) matrix products per block
+_CODE_BLOCK = 64
+# atoms per block in prediction (more points per product than in a sweep: smaller blocks, fewer corrections)
+_PRED_BLOCK = 32
 
 
 @njit(cache=True)
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
-    """Joint (b_ki, s_ki) block update for every data point i and atom k (i outer, k inner).
+    """Joint (b_ki, s_ki) block update for every data point i and atom k (MODEL.md; i outer, k inner).
 
     With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
     ``s ~ N(0, 1/g_s)``. Draw order per point i: K uniforms (for b_i1..b_iK), then K standard normals (s).
-    The residual row r_i is updated in place by ``d_k (alpha_old - alpha_new)``: O(M) per (i, k).
-    Software-pipelined: ``d_{k+1} . r`` is computed before atom k's change ``delta`` is known and corrected
-    by ``delta d_k . d_{k+1}``, so the next dot product overlaps the current atom's scalar work.
+
+    Each point's atoms are visited in order k = 1..K, each conditioned on the point's atoms < k, with the
+    point's own random numbers: the chain is that of a point-by-point sweep. Codes of different points are
+    independent given D, so the points are processed together, in blocks of ``_CODE_BLOCK`` atoms: the
+    projections ``d_k . r_i`` of a block come from one matrix product ``D_blk R^T`` (BLAS-3), are corrected
+    within the block by the block's Gram matrix (:func:`_code_block`), and the residual is updated once per
+    block, ``R += Delta^T D_blk`` (Delta = alpha_old - alpha_new). O(N K M) per sweep, as matrix products.
+    Shapes: R (N, M), D (K, M), norms (K,), B (N, K) int8, S, W (N, K); all updated in place but D, W.
     """
     N, K = B.shape
     M = R.shape[1]
@@ -207,35 +398,32 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         tau[k] = g_s + g_xy * norms[k]
         half_log[k] = 0.5 * np.log(g_s / tau[k])
         sd_on[k] = 1.0 / np.sqrt(tau[k])
-    gnext = _adjacent_gram(D, 0, M)
-    U = np.empty(K)
-    Zn = np.empty(K)
+    Ut = np.empty((K, N))
+    Zt = np.empty((K, N))
+    _code_randoms(rng, N, K, Ut, Zt)
+    At = np.empty((K, N))
+    _transpose_into(_codes_from(B, S), At)
+    Wt = np.empty((K, N))
+    _transpose_into(W, Wt)
+    Bt = np.empty((K, N))
+    St = np.empty((K, N))
+    nbmax = min(_CODE_BLOCK, K)
+    Dt = np.empty((nbmax, N))
+    Rt = R.T
+    for k0 in range(0, K, nbmax):
+        k1 = min(k0 + nbmax, K)
+        nb = k1 - k0
+        Db = D[k0:k1]
+        Ct = Db @ Rt
+        Gb = Db @ Db.T
+        _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms)
+        R += Dt[:nb].T @ Db
+    _transpose_into(St, S)
+    Bf = np.empty((N, K))
+    _transpose_into(Bt, Bf)
     for i in range(N):
-        # this point's random numbers up front: no opaque generator calls inside the atom loop
         for k in range(K):
-            U[k] = rng.random()
-        for k in range(K):
-            Zn[k] = rng.standard_normal()
-        proj_next = _dot_rows(R, i, D, 0, M)
-        for k in range(K):
-            proj = proj_next
-            if k + 1 < K:
-                proj_next = _dot_rows(R, i, D, k + 1, M)  # r without atom k's change (added below)
-            a_old = S[i, k] if B[i, k] else 0.0
-            mu = g_xy * (proj + a_old * norms[k]) / tau[k]
-            logit = W[i, k] + half_log[k] + 0.5 * tau[k] * mu * mu
-            # u < sigmoid(logit), branch-free (exp(-logit) = inf gives False, as it should for u > 0)
-            on = U[k] * (1.0 + np.exp(-logit)) < 1.0
-            z = Zn[k]
-            s_on = mu + z * sd_on[k]
-            s = s_on if on else z * sd_off
-            a_new = s_on if on else 0.0
-            delta = a_old - a_new
-            if delta != 0.0:
-                _axpy_rows(delta, D, k, R, i, M)
-                proj_next += delta * gnext[k]
-            B[i, k] = 1 if on else 0
-            S[i, k] = s
+            B[i, k] = 1 if Bf[i, k] != 0.0 else 0
 
 
 @njit(cache=True)
@@ -285,7 +473,8 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     A = _codes_from(B, S)
     G = A.T @ A
     AV = A.T @ V
-    E = rng.standard_normal((K, M))
+    E = np.empty((K, M))
+    _randn_fill(rng.bit_generator, E)
     for part in range(2):
         if part == 0:
             lo, hi, g, gn = 0, Mx, g_x, g_xy
@@ -320,7 +509,8 @@ def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
         g_ny = g_xy
     N, K = B.shape
     M = D.shape[1]
-    E = rng.standard_normal((K, M))
+    E = np.empty((K, M))
+    _randn_fill(rng.bit_generator, E)
     idx = np.empty(N, dtype=np.int64)
     a = np.empty(N)
     acc = np.empty(M)
@@ -425,10 +615,12 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, sepa
 def _signs_t(B):
     """z = 2 b - 1, transposed to (K, N) so that atom k's vector is a contiguous row."""
     N, K = B.shape
-    Zt = np.empty((K, N))
+    Z = np.empty((N, K))
     for i in range(N):
         for k in range(K):
-            Zt[k, i] = 1.0 if B[i, k] else -1.0
+            Z[i, k] = 1.0 if B[i, k] else -1.0
+    Zt = np.empty((K, N))
+    _transpose_into(Z, Zt)
     return Zt
 
 
@@ -439,34 +631,54 @@ _TINY = 1e-30
 
 # exp(-a) without a libm call, so that loops over it vectorize (with 'reassoc' for the reductions): a is clamped
 # to [0, 708] (exp(-708) is still a normal number), a = k ln2 + r with |r| <= ln2 / 2 (ln2 split in two parts,
-# as in fdlibm), exp(-r) by its Taylor polynomial of degree 13 (truncation < 4e-18 relative) and 2^-k from the
-# ten bits of k (no table gather).
+# as in fdlibm), exp(-r) by its Taylor polynomial of degree 13 (truncation < 4e-18 relative) and 2^-k written
+# directly as the bits of a double (0 <= k <= 1022, so 2^-k is a normal number).
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
 _LOG2E = 1.4426950408889634
 _EXP_CLAMP = 708.0
+_BITS_2P52 = 0x4330000000000000  # the bits of 2.0**52
 # Taylor coefficients 1 / j! of exp, highest degree first (j = 13 .. 0), for Horner's scheme
 _EXP_TAYLOR = tuple(1.0 / math.factorial(j) for j in range(13, -1, -1))
-# 2^-(2^j) for j = 0 .. 9: 2^-k is the product of those whose bit j is set in k (0 <= k <= 1021)
-_POW2_NEG = tuple(2.0 ** -(2**j) for j in range(10))
 # terms per logged product in _sum_log_sigmoid: factors are in [1, 2], so a product stays below 2^512
 _LOG_CHUNK = 512
+
+
+@intrinsic
+def _int_bits_as_float(typingctx, bits):
+    """The int64 ``bits`` reinterpreted as a float64 (an LLVM bitcast; vectorizes, unlike a table or a view)."""
+    if bits != types.int64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+
+    return types.float64(types.int64), codegen
+
+
+@intrinsic
+def _float_bits_as_int(typingctx, x):
+    """The float64 ``x`` reinterpreted as an int64 (an LLVM bitcast)."""
+    if x != types.float64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return types.int64(types.float64), codegen
 
 
 @njit(cache=True, inline="always", fastmath=_VEC)
 def _exp_neg(a):
     """exp(-a) for a >= 0 (a > _EXP_CLAMP gives exp(-_EXP_CLAMP)); relative error about 1e-16."""
     a = min(a, _EXP_CLAMP)
-    k = np.int64(a * _LOG2E + 0.5)
-    q = (k * _LN2_HI - a) + k * _LN2_LO  # -r
+    kd = np.floor(a * _LOG2E + 0.5)  # k as a double: no float-int conversion, which AVX2 lacks for vectors
+    q = (kd * _LN2_HI - a) + kd * _LN2_LO  # -r
     p = 0.0
     for c in _EXP_TAYLOR:
         p = p * q + c
-    scale = 1.0
-    for j in range(10):
-        if (k >> j) & 1:
-            scale *= _POW2_NEG[j]
-    return p * scale
+    kb = _float_bits_as_int(kd + 4503599627370496.0)  # 2^52 + k is exact: its bits are 0x433... + k
+    return p * _int_bits_as_float((_BITS_2P52 + 1023 - kb) << 52)  # 2^-k from its exponent bits
 
 
 @njit(cache=True, inline="always", fastmath=_VEC)
@@ -535,19 +747,24 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     N, K = W.shape
     exact = ratio == MH_EXACT
     Zt = _signs_t(B)
-    Wt = np.ascontiguousarray(W.T)
+    Wt = np.empty((K, N))
+    _transpose_into(W, Wt)
     Lam = np.empty((K, N))
     Sig = np.empty((K, N))
     _bound_terms(Zt, Wt, Lam, Sig, ratio == MH_LITERAL)
     Mu = Lam @ Sigma
-    Wp = Mu + rng.standard_normal((K, N)) @ Lw.T
+    Eps = np.empty((K, N))
+    _randn_fill(rng.bit_generator, Eps)
+    Wp = Mu + Eps @ Lw.T
     if w_mean != 0.0:
         Wp += w_mean
     Lamp = np.empty((K, N))
     Sigp = np.empty((K, N))
     _bound_terms(Zt, Wp, Lamp, Sigp, ratio == MH_LITERAL)
     Mup = Lamp @ Sigma if exact else Mu
-    U = rng.random(K)
+    U = np.empty(K)
+    for k in range(K):
+        U[k] = _rand(rng.bit_generator)
     accepted = 0
     for k in range(K):
         lr = 0.0
@@ -574,7 +791,8 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
         if np.log(U[k]) < lr:
             accepted += 1
             for i in range(N):
-                W[i, k] = Wp[k, i]
+                Wt[k, i] = Wp[k, i]
+    _transpose_into(Wt, W)
     return accepted
 
 
@@ -590,8 +808,12 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
     """
     N, K = W.shape
     Zt = _signs_t(B)
-    Wt = np.ascontiguousarray(W.T)
-    Nu = rng.standard_normal((K, N)) @ Lw.T
+    Wt = np.empty((K, N))
+    _transpose_into(W, Wt)
+    bg = rng.bit_generator
+    Eps = np.empty((K, N))
+    _randn_fill(bg, Eps)
+    Nu = Eps @ Lw.T
     wp = np.empty(N)
     two_pi = 2.0 * np.pi
     moved = 0
@@ -599,8 +821,8 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
         wk = Wt[k]
         zk = Zt[k]
         nk = Nu[k]
-        log_y = _sum_log_sigmoid(zk, wk) + np.log(rng.random())
-        theta = rng.random() * two_pi
+        log_y = _sum_log_sigmoid(zk, wk) + np.log(_rand(bg))
+        theta = _rand(bg) * two_pi
         lo = theta - two_pi
         hi = theta
         while True:
@@ -617,14 +839,15 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
             if hi - lo < 1e-300:  # cannot happen for a finite log-likelihood; guard against a hang
                 wp[:] = wk
                 break
-            theta = lo + rng.random() * (hi - lo)
+            theta = lo + _rand(bg) * (hi - lo)
         changed = False
         for i in range(N):
-            if W[i, k] != wp[i]:
+            if wk[i] != wp[i]:
                 changed = True
-            W[i, k] = wp[i]
+            wk[i] = wp[i]  # wk is row k of Wt
         if changed:
             moved += 1
+    _transpose_into(Wt, W)
     return moved
 
 
@@ -937,7 +1160,42 @@ def point_seeds(Xbits, seed):
     return out
 
 
-@njit(cache=True, fastmath=_VEC)
+@njit(cache=True, fastmath=_VEC, error_model="numpy")
+def _predict_block(Ct, Gb, At, Dt, Wt, streams, k0, nb, nx, gain, half_tau, half_log, sd_on):
+    """One sweep of the (b, s) block update of atoms k0 .. k0 + nb - 1 for every test point (prediction).
+
+    As :func:`_code_block`: ``Ct[j, t] = d^x_{k0+j} . r_t`` for the residual before the block, corrected within
+    the block by the block's Gram matrix ``Gb``; ``At`` (K, T) the codes, ``Dt[j, t] = alpha_old - alpha_new``.
+    Random numbers from each point's own splitmix64 stream (``streams[t]``), in the point's atom order: one
+    uniform unless the logit exceeds ``_LOGIT_SURE``, then one ziggurat normal if the atom is on.
+    """
+    T = Ct.shape[1]
+    for j in range(nb):
+        k = k0 + j
+        for t in range(T):
+            a_old = At[k, t]
+            mu = gain[k] * (Ct[j, t] + a_old * nx[k])
+            logit = Wt[k, t] + half_log[k] + half_tau[k] * mu * mu
+            st = streams[t]
+            on = logit > _LOGIT_SURE  # then P(on) rounds to 1: no uniform is drawn
+            if not on:
+                st, u = _uniform(st)
+                on = u * (1.0 + np.exp(-logit)) < 1.0  # u < sigmoid(logit)
+            if on:
+                st, z = _normal(st)
+                a_new = mu + z * sd_on[k]
+            else:
+                a_new = 0.0  # s of an inactive atom does not enter the prediction
+            streams[t] = st
+            At[k, t] = a_new
+            Dt[j, t] = a_old - a_new
+        for jj in range(j + 1, nb):
+            g = Gb[j, jj]
+            for t in range(T):
+                Ct[jj, t] += g * Dt[j, t]
+
+
+@njit(cache=True)
 def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll):
     """Posterior predictive draws of y for every test point and retained sample.
 
@@ -946,21 +1204,25 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     ``out_y[t, l] = D^y alpha_t``; ``out_ll[t, l] = log N(x_t; D^x alpha_t, 1/g_xy I)`` (for the paper's
     likelihood weights). Random numbers: a splitmix64 stream per test point seeded by ``seeds[t]`` (per atom
     one uniform unless the logit exceeds ``_LOGIT_SURE``, where P(on) is 1 in float64; then one ziggurat
-    normal if the atom is on), so a point's prediction does not depend on the
-    batch. Samples are the outer loop (one sample's dictionaries stay in cache for all test points); blocks
-    of ``_PRED_BLOCK`` test points are interleaved atom by atom, and the residual update of atom k is fused
-    with the projection on atom k + 1 (one pass over the residual per atom).
-    Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,).
+    normal if the atom is on), so a point's prediction does not depend on the batch (up to rounding). Each
+    point's atoms are visited in order within a sweep, as in a point-by-point loop; the points are processed
+    together, in blocks of ``_PRED_BLOCK`` atoms as in :func:`update_codes` (projections ``D^x_blk R^T`` and the
+    residual update ``R += Delta^T D^x_blk`` as matrix products, within-block corrections by the block's Gram
+    matrix).
+    Shapes: Xt (T, Mx); nbr (T, j); Dx (L, K, Mx); Dy (L, K, My); Ws (L, N, K); gs, gxy (L,);
+    out_y (T, L, My) and out_ll (T, L) are written.
     """
     T, Mx = Xt.shape
     L, K, _ = Dx.shape
     My = out_y.shape[2]
     nj = nbr.shape[1]
-    P = _PRED_BLOCK
-    r = np.empty((P, Mx))  # residuals of a block of test points
-    alpha = np.empty((P, K))
-    wt = np.empty((P, K))
-    pn = np.empty(P)
+    nbmax = min(_PRED_BLOCK, K)
+    R = np.empty((T, Mx))
+    At = np.empty((K, T))
+    Wp = np.empty((T, K))
+    Wt = np.empty((K, T))
+    Dt = np.empty((nbmax, T))
+    Gbs = np.empty(((K + nbmax - 1) // nbmax, nbmax, nbmax))
     nx = np.empty(K)
     gain = np.empty(K)  # g_xy / tau_k
     half_tau = np.empty(K)
@@ -970,7 +1232,7 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
     for l in range(L):
         g_s = gs[l]
         g_xy = gxy[l]
-        Dxl = Dx[l]
+        Dxl = np.ascontiguousarray(Dx[l])
         for k in range(K):
             nx[k] = _dot_rows(Dxl, k, Dxl, k, Mx)
             tau = g_s + g_xy * nx[k]
@@ -978,65 +1240,37 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
             half_tau[k] = 0.5 * tau
             half_log[k] = 0.5 * np.log(g_s / tau)
             sd_on[k] = 1.0 / np.sqrt(tau)
-        for t0 in range(0, T, P):
-            nb = min(P, T - t0)
-            for p in range(nb):
-                t = t0 + p
+        for t in range(T):
+            for k in range(K):
+                Wp[t, k] = 0.0
+            for q in range(nj):
                 for k in range(K):
-                    wt[p, k] = 0.0
-                for q in range(nj):
-                    for k in range(K):
-                        wt[p, k] += Ws[l, nbr[t, q], k]
-                for k in range(K):
-                    wt[p, k] /= nj
-                    alpha[p, k] = 0.0
-                for m in range(Mx):
-                    r[p, m] = Xt[t, m]
-            for _ in range(n_sweeps):
-                for p in range(nb):
-                    pn[p] = _dot_rows(Dxl, 0, r, p, Mx)
-                for k in range(K):
-                    for p in range(nb):
-                        t = t0 + p
-                        a_old = alpha[p, k]
-                        mu = gain[k] * (pn[p] + a_old * nx[k])
-                        logit = wt[p, k] + half_log[k] + half_tau[k] * mu * mu
-                        st = streams[t]
-                        on = logit > _LOGIT_SURE  # then P(on) rounds to 1: no uniform is drawn
-                        if not on:
-                            st, u = _uniform(st)
-                            on = u * (1.0 + np.exp(-logit)) < 1.0  # u < sigmoid(logit)
-                        if on:
-                            st, z = _normal(st)
-                            a_new = mu + z * sd_on[k]
-                        else:
-                            a_new = 0.0  # s of an inactive atom does not enter the prediction
-                        streams[t] = st
-                        alpha[p, k] = a_new
-                        delta = a_old - a_new
-                        if k + 1 < K:
-                            if delta != 0.0:  # r += delta d_k and the projection on d_{k+1}, in one pass
-                                acc = 0.0
-                                for m in range(Mx):
-                                    v = r[p, m] + delta * Dxl[k, m]
-                                    r[p, m] = v
-                                    acc += Dxl[k + 1, m] * v
-                                pn[p] = acc
-                            else:
-                                pn[p] = _dot_rows(Dxl, k + 1, r, p, Mx)
-                        elif delta != 0.0:
-                            _axpy_rows(delta, Dxl, k, r, p, Mx)
-            for p in range(nb):
-                t = t0 + p
-                for m in range(My):
-                    out_y[t, l, m] = 0.0
-                for k in range(K):
-                    a = alpha[p, k]
-                    if a != 0.0:
-                        for m in range(My):
-                            out_y[t, l, m] += a * Dy[l, k, m]
-                rr = _dot_rows(r, p, r, p, Mx)
-                out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
+                    Wp[t, k] += Ws[l, nbr[t, q], k]
+            for k in range(K):
+                Wp[t, k] /= nj
+            for m in range(Mx):
+                R[t, m] = Xt[t, m]
+        _transpose_into(Wp, Wt)
+        for k0 in range(0, K, nbmax):  # the Gram matrices of the atom blocks, once per sample
+            k1 = min(k0 + nbmax, K)
+            Gbs[k0 // nbmax, :k1 - k0, :k1 - k0] = Dxl[k0:k1] @ Dxl[k0:k1].T
+        At[:, :] = 0.0
+        Rt = R.T
+        for _ in range(n_sweeps):
+            for k0 in range(0, K, nbmax):
+                k1 = min(k0 + nbmax, K)
+                nb = k1 - k0
+                Db = Dxl[k0:k1]
+                Ct = Db @ Rt
+                _predict_block(Ct, Gbs[k0 // nbmax], At, Dt, Wt, streams, k0, nb, nx, gain, half_tau, half_log,
+                               sd_on)
+                R += Dt[:nb].T @ Db
+        Yl = At.T @ np.ascontiguousarray(Dy[l])
+        for t in range(T):
+            for m in range(My):
+                out_y[t, l, m] = Yl[t, m]
+            rr = _dot_rows(R, t, R, t, Mx)
+            out_ll[t, l] = 0.5 * Mx * (np.log(g_xy) - np.log(2.0 * np.pi)) - 0.5 * g_xy * rr
 
 
 @njit(cache=True)

@@ -317,6 +317,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             del trace["g_nx"], trace["g_ny"]
 
         level = logging.INFO if self.verbose else logging.DEBUG
+        kern.keep_freed_memory()  # the sweeps' temporaries are reused, not page-faulted in again every sweep
         t0 = time.perf_counter()
         slot = 0
         for it in range(self.n_iter):
