@@ -125,3 +125,15 @@ def test_every_shipped_configuration_is_unchanged_by_the_number_reading():
     for path in sorted((ROOT / "config").glob("*.yaml")):
         config = yaml.safe_load(path.read_text())
         assert retype_yaml_numbers(config, schema) == [], path
+
+
+def test_true_false_strings_read_as_booleans_where_the_schema_wants_one():
+    """`--config job_server=false` reaches the config as the string 'false' (Snakemake parses only Python's
+    True/False) and failed the schema; it is a boolean now. Strings elsewhere keep their text."""
+    config = {"job_server": "false", "study": "true", "methods": {"Ridge": {"params": {"flag": "false"}}}}
+    changed = retype_yaml_numbers(config, load_schema(*SCHEMAS))
+    assert config["job_server"] is False and changed == ["job_server"]
+    assert config["study"] == "true" and config["methods"]["Ridge"]["params"]["flag"] == "false"
+    config = {"job_server": "True"}
+    retype_yaml_numbers(config, load_schema(*SCHEMAS))
+    assert config["job_server"] is True

@@ -232,3 +232,13 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
                          capture_output=True, text=True)
     assert bad.returncode != 0
     assert "no_such_job" in (tmp_path / "bad.log").read_text()
+
+
+@pytest.mark.parametrize("args, code", [(["--help"], 0), ([], 2), (["a", "b"], 2)])
+def test_command_line_without_a_socket_prints_usage(tmp_path, args, code):
+    """`python -m bsrbench.jobserver --help` (or no argument) prints the usage; it used to start a server on a
+    socket named '--help' (or fail with an IndexError)."""
+    out = subprocess.run([sys.executable, "-m", "bsrbench.jobserver", *args], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == code and "usage: python -m bsrbench.jobserver SOCKET" in out.stderr
+    assert list(tmp_path.iterdir()) == []

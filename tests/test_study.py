@@ -223,6 +223,12 @@ def test_load_features_checks_the_file(tmp_path):
     np.savez(nan, X=np.array([[1.0, np.nan]]), Y=np.ones((1, 2)))
     with pytest.raises(DataFileError, match="non-finite value in row 0"):
         load_features(nan)
+    # a truncated file (an interrupted copy): numpy raises zipfile.BadZipFile, which used to reach the job's log
+    good = _synthetic_features(tmp_path)
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(good.read_bytes()[:100])
+    with pytest.raises(DataFileError, match=r"cut\.npz.*cannot read as \.npz.*delete it and rerun"):
+        load_features(cut)
 
 
 def test_run_job_scores_in_degrees_after_undoing_the_transform(tmp_path):

@@ -102,6 +102,27 @@ def test_exponent_numbers_are_numbers_in_config_files_and_on_the_command_line(ho
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
 
 
+def test_run_outside_the_repository_and_capital_activity_names_are_named(tmp_path):
+    """Fresh-user findings: with --directory elsewhere, config/datasets.yaml is not found and Snakemake skips it
+    silently (the error used to be "unknown data source 'hsc'; config/datasets.yaml defines []"); an activity
+    name with capitals passed the schema but no rule can build it (wildcards are lower case)."""
+    res = smk("-n", "--cores", "1", "-d", str(tmp_path), "--configfile", str(ROOT / "config" / "ci.yaml"))
+    assert res.returncode != 0
+    assert "config/datasets.yaml was not loaded from the working directory" in res.stdout + res.stderr
+    over = tmp_path / "upper.yaml"
+    over.write_text("datasets: {hsc: {Golf2: {kind: mat, file: resources/paper-features/x4921.mat}}}\n")
+    res = smk("-n", "--cores", "1", "--configfile", str(over))
+    assert res.returncode != 0
+    assert re.search(r"Golf2.*does not match.*\^\[a-z0-9_\]\+\$", res.stdout + res.stderr, re.S), res.stderr[-3000:]
+
+
+def test_boolean_on_the_command_line(tmp_path):
+    """`--config job_server=false` (YAML's spelling, as config/README.md documents it) used to fail the schema
+    ("'false' is not of type 'boolean'")."""
+    res = smk("-n", "--cores", "1", "--config", "job_server=false")
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+
+
 def copy_tree(work):
     """The workflow, profiles and configs in ``work`` (resources linked, not copied), so that no result of the
     working tree counts."""

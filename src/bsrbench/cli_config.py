@@ -128,7 +128,8 @@ def retype_yaml_numbers(config, schema):
     with an exponent becomes a float where the schema allows ``number`` or sets no type (free-form values such as
     estimator parameters), an int where it allows only ``integer`` and the value is whole; elsewhere (a string key)
     it is left alone for the schema to judge. A whole float where only an integer is allowed becomes an int
-    (Snakemake reads ``--config n_seeds=1e1`` as 10.0).
+    (Snakemake reads ``--config n_seeds=1e1`` as 10.0). ``"true"``/``"false"`` (any case) become booleans where the
+    schema allows a boolean (Snakemake reads ``--config job_server=false`` as the string).
     """
     changed = []
 
@@ -148,6 +149,10 @@ def retype_yaml_numbers(config, schema):
                 "integer"}:  # `--config n_seeds=1e1`: Snakemake reads 10.0
             changed.append(where)
             return int(value)
+        if isinstance(value, str) and value.strip().lower() in ("true", "false") and "boolean" in _types(node, schema):
+            # `--config job_server=false`: Snakemake parses only Python's True/False, not YAML's true/false
+            changed.append(where)
+            return value.strip().lower() == "true"
         if isinstance(value, str) and _EXPONENT_FLOAT.fullmatch(value.strip()):
             types = _types(node, schema)
             number = float(value)

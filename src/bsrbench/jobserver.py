@@ -555,6 +555,13 @@ def main(argv=None):
 
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] != ["job"]:
+        if len(argv) != 1 or argv[0].startswith("-"):
+            print(
+                "usage: python -m bsrbench.jobserver SOCKET          serve jobs on the Unix socket SOCKET\n"
+                "       python -m bsrbench.jobserver job --help      run one job (the study's rules do this)",
+                file=sys.stderr,
+            )
+            raise SystemExit(0 if argv in (["-h"], ["--help"]) else 2)
         serve(argv[0])
         return
     ap = argparse.ArgumentParser(prog="python -m bsrbench.jobserver job")

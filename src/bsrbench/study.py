@@ -20,6 +20,7 @@ import json
 import math
 import platform
 import time
+import zipfile
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -249,8 +250,10 @@ def load_features(path):
     try:
         with np.load(path, allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-    except (OSError, ValueError) as exc:
-        raise DataFileError(path, f"cannot read as .npz ({exc})") from exc
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataFileError(
+            path, f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it"
+        ) from exc
     for key in ("X", "Y"):
         if key not in data:
             raise DataFileError(path, f"missing array {key!r}; it has {sorted(data)}")

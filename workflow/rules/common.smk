@@ -68,6 +68,12 @@ def _check_study_config():
         raise ValueError("config key 'study_activities': no activity to study (every source has an empty list)")
     for source, acts in config["study_activities"].items():
         known = _data_activities(source)
+        if not config.get("datasets"):
+            raise ValueError(
+                f"config key 'datasets': empty, so config/datasets.yaml was not loaded from the working directory "
+                f"{os.getcwd()}; run snakemake in the repository (the folder of the Snakefile) or point "
+                f"--directory at it"
+            )
         if not known:
             raise ValueError(
                 f"config key 'study_activities': unknown data source {source!r}; "
