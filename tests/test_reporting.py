@@ -162,8 +162,15 @@ def test_findings_for_all_and_for_none():
                                    ("acrobatics", "RVM"): [2.0]}))
     text = "\n".join(findings(all_ok, None, labels=LABELS))
     assert "than RVM for all 2 activities studied" in text
-    one = aggregate_rows(_rows({("golf", "PM"): [3.0], ("golf", "RVM"): [2.0]}))
-    assert "than RVM for the activity studied (\\mbox{Golf (hsc)})" in "\n".join(findings(one, None, labels=LABELS))
+    # one activity: PM better reads "for the activity studied"; PM worse used to read the same (the sentence
+    # said PM had the lower error when it had the higher one)
+    better = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0]}))
+    text = "\n".join(findings(better, None, labels=LABELS))
+    assert "than RVM for the activity studied (\\mbox{Golf (hsc)})" in text
+    worse = aggregate_rows(_rows({("golf", "PM"): [3.0], ("golf", "RVM"): [2.0]}))
+    text = "\n".join(findings(worse, None, labels=LABELS))
+    assert "than RVM for no activity: not for \\mbox{Golf (hsc)}, the only activity studied" in text
+    assert "for the activity studied" not in text
 
 
 DESIGN = {"protocols": ["random"], "pairs": [["hsc", "golf"]], "methods": ["PM", "RVM"], "n_train": [30],
