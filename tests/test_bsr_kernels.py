@@ -222,42 +222,31 @@ def _sweeps_match(problem, w_update, atom_update):
     _assert_states_close(s1, s2)
 
 
-def test_predict_kernel_matches_naive():
-    rng = np.random.default_rng(11)
-    L, K, Mx, My, N, T, j = 3, 6, 4, 2, 9, 5, 3
-    Dx, Dy = rng.standard_normal((L, K, Mx)), rng.standard_normal((L, K, My))
+@pytest.mark.parametrize("seed, n_atoms, scale, n_sweeps, stream", [
+    (11, 6, 1.0, 4, 123),  # one partial block of atoms
+    (12, "block+5", 0.5, 3, 5),  # more atoms than one block of the prediction kernel (a full and a partial block)
+])
+def test_predict_kernel_matches_naive(seed, n_atoms, scale, n_sweeps, stream):
+    rng = np.random.default_rng(seed)
+    K = kern._PRED_BLOCK + 5 if n_atoms == "block+5" else n_atoms
+    L, Mx, My, N, T, j = 3, 4, 2, 9, 5, 3
+    Dx, Dy = rng.standard_normal((L, K, Mx)) * scale, rng.standard_normal((L, K, My))
     Ws = rng.standard_normal((L, N, K))
     gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
     Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
     nbr = kern.nearest_neighbours(Xt, Xtr, j)
-    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(123))
+    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(stream))
     out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
-    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, 4, seeds, out_y, out_ll)
-    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 4, 123)
+    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
+    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, n_sweeps, stream)
     np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
     # a point's stream does not depend on the batch: the same draws alone as in a batch, up to the rounding of
     # the batch's matrix products
-    sub_y, _ = np.empty((1, L, My)), np.empty((1, L))
-    kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, 4, seeds[2:3], sub_y, np.empty((1, L)))
+    sub_y = np.empty((1, L, My))
+    kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, n_sweeps, seeds[2:3], sub_y, np.empty((1, L)))
     np.testing.assert_allclose(sub_y[0], out_y[2], rtol=1e-12, atol=1e-14)
 
-
-def test_predict_kernel_blocked_over_atoms_matches_naive():
-    """More atoms than one block of the prediction kernel (a full and a partial block)."""
-    rng = np.random.default_rng(12)
-    L, K, Mx, My, N, T, j = 2, kern._PRED_BLOCK + 5, 6, 2, 9, 4, 3
-    Dx, Dy = rng.standard_normal((L, K, Mx)) * 0.5, rng.standard_normal((L, K, My))
-    Ws = rng.standard_normal((L, N, K))
-    gs, gxy = rng.gamma(3, 1 / 3, L), rng.gamma(3, 1, L)
-    Xtr, Xt = rng.standard_normal((N, Mx)), rng.standard_normal((T, Mx))
-    nbr = kern.nearest_neighbours(Xt, Xtr, j)
-    seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(5))
-    out_y, out_ll = np.empty((T, L, My)), np.empty((T, L))
-    kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, 3, seeds, out_y, out_ll)
-    ref_y, ref_ll = naive.predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, 3, 5)
-    np.testing.assert_allclose(out_y, ref_y, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(out_ll, ref_ll, rtol=1e-9)
 
 
 def test_predict_prior_codes_matches_naive():
