@@ -1,12 +1,12 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
-Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a
-fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and
-loading numba's cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The
-rules' shell commands (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done
-those imports once and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through a
-Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout
-and stderr, and results are identical.
+Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a fresh
+interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
+cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
+(``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once and forks a
+child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
+a Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout and
+stderr, and results are identical.
 
 Lifecycle and safety:
 - One server per environment and working directory. The first job starts it (``python -m bsrbench.jobserver``)
@@ -124,18 +124,6 @@ def _plain(value):
 
 def _named(nl):
     return {name: _plain(val) for name, val in nl.items()}
-
-
-def job_from_snakemake(sm):
-    """The job dict of a Snakemake script object: named input/output/params/wildcards, log, threads."""
-    return {
-        "input": _named(sm.input),
-        "output": _named(sm.output),
-        "params": _named(sm.params),
-        "wildcards": _named(sm.wildcards),
-        "log": [str(x) for x in sm.log],
-        "threads": int(sm.threads),
-    }
 
 
 def job_params(params):

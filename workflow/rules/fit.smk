@@ -1,8 +1,9 @@
 # Fit jobs: one per (protocol, source, activity, method, n_train, seed); CV jobs choose hyper-parameters.
 #
-# The bodies are in bsrbench.jobs; each rule's shell command hands its job (params.job, JSON) to
-# bsrbench.jobserver, which runs it in a fork of a warm Python process (config key job_server) or in the
-# command's own process. Shell rather than script: a script job would spend ~0.25 s importing Snakemake.
+# The bodies are in bsrbench.jobs; each rule's shell command hands its job (params.job: JSON of the named input, output,
+# wildcards and the *_PARAMS below, evaluated) to bsrbench.jobserver, which runs it in a fork of a warm Python process
+# (config key job_server) or in the command's own process. Shell rather than script: a script job would spend ~0.25 s
+# importing Snakemake.
 
 JOB = "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}}"
 
@@ -45,7 +46,6 @@ rule cv:
     benchmark:
         f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
-        **CV_PARAMS,
         job=jobserver.job_params(CV_PARAMS),
     threads: 1
     conda:
@@ -70,7 +70,6 @@ rule fit:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
-        **FIT_PARAMS,
         job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=False),
@@ -98,7 +97,6 @@ rule fit_chain:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
     params:
-        **CHAIN_PARAMS,
         job=jobserver.job_params(CHAIN_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
@@ -123,7 +121,6 @@ rule pool_chains:
     log:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     params:
-        **FIT_PARAMS,
         job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
