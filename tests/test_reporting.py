@@ -362,10 +362,13 @@ def _files(tmp_path):
         (["readme", "{published}", "--protocol", "sideways"], r"no rows of protocol 'sideways'"),
         (["publish", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
         (["publish", "{published}", "{binary}/out.csv"], r"binary\.csv/out\.csv: cannot write the published table"),
+        (["publish", "{published}", "{tmp}/nope/out.csv"],
+         r"nope/out\.csv: cannot write the published table: its folder '.*/nope' does not exist; expected the path "
+         r"of a table in an existing folder"),
     ],
     ids=["update-missing", "update-folder", "update-binary", "update-no-markers", "table-missing", "table-binary",
          "table-empty", "table-columns", "paper-binary", "paper-empty", "paper-value", "protocol", "publish-binary",
-         "publish-unwritable"],
+         "publish-unwritable", "publish-missing-folder"],
 )
 def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsys, args, message):
     """Before: `readme ... --update MISSING` (and a binary table, an empty or non-numeric paper table, an
@@ -381,3 +384,4 @@ def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsy
     assert err.startswith("error: ") and err.count("\n") == 1, err
     assert re.search(message, err), err
     assert {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+    assert not (tmp_path / "nope").exists()  # publish to a missing folder creates nothing (it used to create it)
