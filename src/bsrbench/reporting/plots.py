@@ -101,6 +101,28 @@ def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
     return [float(f"{t:.6g}") for t in linear if lo <= t <= hi]
 
 
+class _LogTickLocator(matplotlib.ticker.Locator):
+    """Labelled ticks of a log axis at :func:`_log_ticks` of the range shown when the axis is drawn (so limits set
+    after it, and axes that share it, are labelled too)."""
+
+    def __call__(self):
+        return self.tick_values(*self.axis.get_view_interval())
+
+    def tick_values(self, vmin, vmax):
+        lo, hi = sorted((float(vmin), float(vmax)))
+        return _log_ticks(lo, hi) if lo > 0 and np.isfinite(hi) and hi > lo else []
+
+
+def label_log_axis(ax):
+    """Make ``ax``'s y axis logarithmic with plain labels (``%g``: no superscripts, which print below 7 pt) at
+    :class:`_LogTickLocator`'s ticks, and bare minor ticks (for grid lines) at 2..9 times a power of ten."""
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(_LogTickLocator())
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_locator(matplotlib.ticker.LogLocator(subs=np.arange(2, 10)))
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+
+
 def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     """A figure of ``n`` panels (at most ``max_cols`` a row) that fits TEXT_WIDTH with a legend at the right."""
     cols = min(max_cols, max(1, n))
@@ -146,14 +168,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
                 ax.plot(pp["n_train"] * dodge, pp["mean_deg"], ls=":", lw=0.9, color=c, marker=mk, mfc="white",
                         ms=4.5)
         ax.set_title(activity_label(act, pa))
-        ax.set_yscale("log")
-        ax.autoscale_view()
-        # labelled ticks chosen for the range shown (on both sides of a power of ten); bare minor ticks and grid
-        # lines at 2..9 times a power of ten
-        ax.yaxis.set_major_locator(matplotlib.ticker.FixedLocator(_log_ticks(*ax.get_ylim())))
-        ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-        ax.yaxis.set_minor_locator(matplotlib.ticker.LogLocator(subs=np.arange(2, 10)))
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        label_log_axis(ax)  # labelled on both sides of a power of ten, whatever the range
         _size_axis(ax, sizes)
         ax.set_xlabel("training frames N")
         ax.set_ylabel("mean angle error (degrees)")
