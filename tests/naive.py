@@ -1,6 +1,6 @@
 """Plain NumPy references of every BSR sampler update (slow, written for clarity).
 
-Each function follows the corrected conditionals of the model reference one formula at a time, with Python
+Each function follows the corrected conditionals of docs/model.md one formula at a time, with Python
 loops where the kernels use fused or blocked loops, and consumes the ``numpy.random.Generator`` in exactly the
 order documented in :mod:`bsrbench.models._bsr_kernels`, so the kernels must reproduce these results draw for
 draw (up to floating-point rounding).
@@ -87,7 +87,8 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
 
 def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
     """One atom at a time: d_k | rest with precision g + g_xy sum_i alpha_ki^2 and mean
-    g_xy sum_i alpha_ki r_i^(-k) / precision (MODEL.md), then the residual without and with the new atom
+    g_xy sum_i alpha_ki r_i^(-k) / precision (docs/model.md, section "Atoms"), then the residual without and with
+    the new atom
     (g_ny in place of g_xy on the output rows with separate noise precisions)."""
     g_ny = g_xy if g_ny is None else g_ny
     K, M = D.shape

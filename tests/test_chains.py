@@ -3,6 +3,7 @@ chains, and the convergence tables, ablation table, sentences and trace figures 
 
 import math
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import pytest
@@ -180,3 +181,42 @@ def test_trace_figure_overlays_chains_and_has_no_empty_panel():
     assert all(len(ax.get_lines()) >= 4 for ax in axes)  # one line per chain
     one = conv.plot_chain_traces({"trace_g_xy": np.exp(rng.normal(size=50))}, title="one chain", n_burn_in=10)
     assert len([ax for ax in one.axes if ax.get_visible()]) == 1
+
+
+def _labelled_ticks(ax):
+    """Values of the labelled y ticks inside the drawn axis's limits (major and minor)."""
+    lo, hi = ax.get_ylim()
+    out = []
+    for minor in (False, True):
+        for t in ax.get_yticklabels(minor=minor):
+            v = t.get_position()[1]
+            if t.get_text() and lo <= v <= hi:
+                assert float(t.get_text()) == pytest.approx(v, rel=1e-6)
+                out.append(v)
+    return sorted(out)
+
+
+def test_log_trace_axes_are_labelled_across_their_range():
+    """Before: the g_xy axes (log) labelled only 1, 2, 3, 5 (or every integer) times a power of ten, so a trace
+    between 7 and 18 had no label above 10. Now at least four labels spread over the range, for the shared axis
+    of the g_xy figure (limits set by the last panel) and for a trace over seven decades."""
+    rng = np.random.default_rng(1)
+    narrow = {"chain_trace_g_xy": 7.0 + 11.0 * rng.random((2, 80)), "n_burn_in": np.int64(20)}
+    narrow["chain_trace_g_xy"][0, :2] = [7.0, 18.0]
+    wide = {"trace_g_xy": np.geomspace(30.0, 5e7, 80)}
+    figs = [conv.plot_gxy([("PM", narrow), ("PMK16", narrow)]), conv.plot_chain_traces(wide, title="wide")]
+    for fig in figs:
+        fig.canvas.draw()
+        axes = [a for a in fig.axes if a.get_visible() and a.get_yscale() == "log"]
+        assert axes
+        for ax in axes:
+            if len(ax.get_shared_y_axes().get_siblings(ax)) > 1 and ax is not axes[0]:
+                continue  # an inner panel of a shared axis: labelled on the first panel only
+            lo, hi = ax.get_ylim()
+            ticks = _labelled_ticks(ax)
+            assert len(ticks) >= 4, ticks
+            logs = np.log10([lo, *ticks, hi])
+            assert np.diff(logs).max() <= 0.4 * (logs[-1] - logs[0]) + 1e-9, (lo, hi, ticks)
+            if hi > 12:
+                assert max(ticks) > 10, ticks
+        plt.close(fig)

@@ -91,6 +91,29 @@ def test_nan_in_features_is_rejected_without_output(tmp_path):
         check_features(np.ones((2, 2)), np.array([[0.0, np.inf], [0, 0]]), "demo")
 
 
+def test_nan_error_names_the_files_row_and_column(tmp_path):
+    """After drop_y_columns and a spread frame selection, the error gives the row and column of the file."""
+    p = tmp_path / "pose.mat"
+    Y = np.zeros((10, 6))
+    Y[6, 4] = np.nan  # selected row 2 of rows [0, 3, 6, 9]; column 1 of the 3 kept columns
+    scipy.io.savemat(p, {"feat": np.ones((10, 4)), "pose": Y})
+    with pytest.raises(InputError, match=r"pose\.mat: pose has 1 non-finite value\(s\), first at row 6, column 4 "
+                                         r"of the file \(0-based\) \(nan\)"):
+        load_feature_mat(p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose")
+    X = np.ones((10, 4))
+    X[9, 3] = np.inf
+    scipy.io.savemat(p, {"feat": X, "pose": np.zeros((10, 6))})
+    with pytest.raises(InputError, match=r"pose\.mat: feat has 1 non-finite value\(s\), first at row 9, column 3 "):
+        load_feature_mat(p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose")
+    # a features .npz is read whole: its rows and columns are the file's
+    npz = tmp_path / "feat.npz"
+    Y = np.zeros((5, 3))
+    Y[4, 2] = np.nan
+    np.savez(npz, X=np.ones((5, 2)), Y=Y, frames=np.arange(5), angle_names=np.array(["a", "b", "c"]))
+    with pytest.raises(InputError, match=r"feat\.npz: Y has 1 non-finite value\(s\), first at row 4, column 2 \(nan\)"):
+        load_features(npz)
+
+
 def test_mat_shorter_than_frames_asked(tmp_path):
     p = tmp_path / "short.mat"
     scipy.io.savemat(p, {"X": np.ones((10, 4)), "Y": np.zeros((10, 6))})

@@ -270,6 +270,52 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
         plt.close(fig)
 
 
+def _error_axis_labels(lo, hi):
+    """Fig. 1 for errors from about ``lo`` (N = 100) to ``hi`` (N = 30) degrees: (y limits, {value: label} of the
+    labelled y ticks inside them), read from the drawn canvas (major and minor ticks)."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import plot_error_vs_ntrain
+
+    rows = []
+    for n, err in ((30, hi), (100, lo)):
+        for r in _rows({("golf", "PM"): [err, err * 0.98], ("golf", "RVM"): [err * 0.99, err * 0.97]}):
+            rows.append(dict(r, n_train=n))
+    fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper()[:0], source="hsc", methods=["PM", "RVM"], labels=LABELS)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    y0, y1 = ax.get_ylim()
+    labels = {}
+    for minor in (False, True):
+        for t in ax.get_yticklabels(minor=minor):
+            v = t.get_position()[1]
+            if t.get_text() and y0 <= v <= y1:
+                assert float(t.get_text()) == pytest.approx(v)  # the label is the tick's value
+                labels[v] = t.get_text()
+    plt.close(fig)
+    return (y0, y1), labels
+
+
+@pytest.mark.parametrize("lo, hi", [(3.0, 25.0), (7.0, 18.0), (4.0, 17.0), (1.6, 17.0), (11.0, 60.0), (9.6, 10.4)])
+def test_error_axis_is_labelled_across_its_whole_range(lo, hi):
+    """Before: labels only at 1, 2, 3, 5 (or every integer) times a power of ten, so an axis from 7 to 18
+    degrees was labelled 7, 8, 9, 10 and nothing above 10. Now every 10^k and 2, 3, 5 x 10^k of a range over a
+    decade is labelled, and labels cover the whole range: at least four, none of the gaps between them (or
+    between an end of the axis and the nearest label) wider than 40% of the axis in log scale."""
+    (y0, y1), labels = _error_axis_labels(lo, hi)
+    values = sorted(labels)
+    assert len(values) >= 4, labels
+    logs = np.log10([y0, *values, y1])
+    assert np.diff(logs).max() <= 0.4 * (logs[-1] - logs[0]) + 1e-9, labels
+    if y1 > 12:
+        assert max(values) > 10, labels
+    if y1 / y0 >= 10:
+        nice = [m * 10.0**k for k in range(-1, 3) for m in (1, 2, 3, 5) if y0 <= m * 10.0**k <= y1]
+        assert all(any(np.isclose(v, n) for v in values) for n in nice), (nice, labels)
+    if (lo, hi) == (3.0, 25.0):
+        assert [labels[v] for v in values] == ["3", "5", "10", "20"]
+
+
 def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
     """Features without images (the hsc source) get the input histogram in the silhouette's place, and the
     true and predicted poses as stick figures of the authors' skeleton, drawn at the same scale in a row."""
@@ -362,10 +408,13 @@ def _files(tmp_path):
         (["readme", "{published}", "--protocol", "sideways"], r"no rows of protocol 'sideways'"),
         (["publish", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
         (["publish", "{published}", "{binary}/out.csv"], r"binary\.csv/out\.csv: cannot write the published table"),
+        (["publish", "{published}", "{tmp}/nope/out.csv"],
+         r"nope/out\.csv: cannot write the published table: its folder '.*/nope' does not exist; expected the path "
+         r"of a table in an existing folder"),
     ],
     ids=["update-missing", "update-folder", "update-binary", "update-no-markers", "table-missing", "table-binary",
          "table-empty", "table-columns", "paper-binary", "paper-empty", "paper-value", "protocol", "publish-binary",
-         "publish-unwritable"],
+         "publish-unwritable", "publish-missing-folder"],
 )
 def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsys, args, message):
     """Before: `readme ... --update MISSING` (and a binary table, an empty or non-numeric paper table, an
@@ -381,3 +430,4 @@ def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsy
     assert err.startswith("error: ") and err.count("\n") == 1, err
     assert re.search(message, err), err
     assert {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+    assert not (tmp_path / "nope").exists()  # publish to a missing folder creates nothing (it used to create it)

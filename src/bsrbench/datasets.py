@@ -101,8 +101,13 @@ class FeatureSet:
     meta: dict = field(default_factory=dict)
 
 
-def check_features(X, Y, source, n_features=None, n_angles=None):
-    """Raise InputError naming ``source`` unless X and Y are finite 2-D arrays with matching rows."""
+def check_features(X, Y, source, n_features=None, n_angles=None, names=("X", "Y"), rows=None, y_column_offset=0):
+    """Raise InputError naming ``source`` unless X and Y are finite 2-D arrays with matching rows.
+
+    The error for a non-finite value gives its row and column in the file when X and Y are a selection of it:
+    ``names`` are the two arrays' names (keys) in ``source``, ``rows[r]`` the file's row of row ``r`` and
+    ``y_column_offset`` the number of leading columns of Y dropped after reading (all 0-based).
+    """
     X = np.asarray(X)
     Y = np.asarray(Y)
     if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
@@ -111,13 +116,15 @@ def check_features(X, Y, source, n_features=None, n_angles=None):
         raise InputError(f"{source}: X has {X.shape[1]} columns; expected {n_features}")
     if n_angles is not None and Y.shape[1] != n_angles:
         raise InputError(f"{source}: Y has {Y.shape[1]} columns; expected {n_angles}")
-    for name, a in (("X", X), ("Y", Y)):
+    for name, a, offset in ((names[0], X, 0), (names[1], Y, int(y_column_offset))):
         bad = ~np.isfinite(a)
         if bad.any():
             r, c = np.argwhere(bad)[0]
+            row = int(r) if rows is None else int(np.asarray(rows)[r])
+            where = "" if rows is None and not offset else " of the file (0-based)"
             raise InputError(
-                f"{source}: {name} has {int(bad.sum())} non-finite value(s), first at row {r}, column {c} "
-                f"({a[r, c]}); expected finite numbers"
+                f"{source}: {name} has {int(bad.sum())} non-finite value(s), first at row {row}, column "
+                f"{int(c) + offset}{where} ({a[r, c]}); expected finite numbers"
             )
 
 
@@ -238,7 +245,7 @@ def load_feature_mat(
     Y = Y[:, drop_y_columns:]
     idx = select_frames(X.shape[0], n_frames, frame_selection, str(path))
     X, Y = X[idx], Y[idx]
-    check_features(X, Y, str(path))
+    check_features(X, Y, str(path), names=(x_key, y_key), rows=idx, y_column_offset=drop_y_columns)
     if angle_names is None:
         angle_names = [f"angle{k + 1:02d}" for k in range(Y.shape[1])]
     elif len(angle_names) != Y.shape[1]:

@@ -2,7 +2,7 @@
 
 For each angle, the root mean square over test frames of the wrapped difference
 ``((a - b + 180) mod 360) - 180``; the error of a test set is the mean of these per-angle values
-(paper, Section "Experimental Results"; shared MODEL.md "Error metric").
+(paper, Section "Experimental Results"; docs/model.md, section "Error metric").
 """
 
 import numpy as np

@@ -1,10 +1,10 @@
 """Numba kernels of the Bayesian sparse-representation (BSR) Gibbs sampler.
 
 Model and conditionals: Babagholami-Mohamadabadi, Jourabloo, Zarghami & Kasaei, "A Bayesian Framework for
-Sparse Representation-Based 3D Human Pose Estimation" (IEEE SPL 2014), Section III and Appendix A, with the
-corrections of the project's model reference (docs "MODEL.md"): the (b, s) block update with s integrated out
-for b, the atom precision ``g + g_xy sum_i alpha_ki^2`` (the paper prints the square of the sum), and the
-Metropolis-Hastings acceptance ratio of the bound-based proposal ``w' ~ N(Sigma Lambda(w), Sigma)`` that
+Sparse Representation-Based 3D Human Pose Estimation" (IEEE SPL 2014), Section II and Appendix A, with the
+corrections of docs/model.md (section "Sources, and where the paper is wrong"): the (b, s) block update with s
+integrated out for b, the atom precision ``g + g_xy sum_i alpha_ki^2`` (the paper prints the square of the sum),
+and the Metropolis-Hastings acceptance ratio of the bound-based proposal ``w' ~ N(Sigma Lambda(w), Sigma)`` that
 depends on the current state (the paper treats it as an independence chain, which is wrong). Elliptical slice
 sampling is from Murray, Adams & MacKay, "Elliptical slice sampling" (AISTATS 2010).
 
@@ -374,7 +374,8 @@ _PRED_BLOCK = 32
 
 @njit(cache=True)
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
-    """Joint (b_ki, s_ki) block update for every data point i and atom k (MODEL.md; i outer, k inner).
+    """Joint (b_ki, s_ki) block update for every data point i and atom k, i outer, k inner (docs/model.md,
+    section "Codes: the (b, s) block update").
 
     With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
@@ -1035,7 +1036,7 @@ def draw_from_prior(N, K, Mx, My, Sigma, Lw, a0, b0, rng, hyper=None):
 # logit prior
 # ----------------------------------------------------------------------------------------------------------
 def logit_prior_cov(Y):
-    """Sigma_w(i, j) = exp(-||y_i - y_j|| / eta), eta = 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1)) (paper, Sec. IV)."""
+    """Sigma_w(i, j) = exp(-||y_i - y_j|| / eta), eta = 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1)) (paper, Sec. III)."""
     Y = np.asarray(Y, dtype=float)
     N = Y.shape[0]
     sq = np.einsum("ij,ij->i", Y, Y)

@@ -4,8 +4,8 @@ Babagholami-Mohamadabadi, Jourabloo, Zarghami & Kasaei, "A Bayesian Framework fo
 3D Human Pose Estimation", IEEE Signal Processing Letters 21(3), 2014. Inputs ``x_i`` and outputs ``y_i`` are
 coded by two dictionaries ``D^x``, ``D^y`` with shared sparse codes ``alpha_i = b_i * s_i``; the code
 activation logits ``w_k`` have a Gaussian-process prior over the training outputs, so points with similar
-outputs use similar atoms. Posterior inference is Gibbs sampling with the corrected conditionals of the
-project's model reference (kernels in :mod:`bsrbench.models._bsr_kernels`); prediction averages, over
+outputs use similar atoms. Posterior inference is Gibbs sampling with the corrected conditionals of
+docs/model.md (kernels in :mod:`bsrbench.models._bsr_kernels`); prediction averages, over
 retained posterior samples, ``D^y alpha_t`` where ``alpha_t`` is drawn given ``x_t`` and the logits of
 ``x_t``'s nearest training inputs (paper, Section "Pose Prediction").
 """
@@ -92,7 +92,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     prediction : {"conditional", "paper-text"}, default="conditional"
         How a test point's codes are drawn per posterior sample. "conditional": (b_t, s_t) given x_t and the
         averaged logits w_t of its j nearest training inputs, by ``n_predict_sweeps`` Gibbs sweeps of the block
-        update on the feature rows (the model reference's reading of the paper). "paper-text": as the paper's
+        update on the feature rows (docs/model.md, section "Prediction"). "paper-text": as the paper's
         Section "Pose Prediction" says, z_t ~ P(z_t | w_t) from the logits alone (not conditioned on x_t), then
         s_t | x_t, z_t exactly from its Gaussian (an ablation; combine with ``prediction_weighting``;
         ``n_predict_sweeps`` is not used).

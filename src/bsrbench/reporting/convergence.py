@@ -322,17 +322,11 @@ def chain_traces(arrays):
 
 
 def _log_axis(ax):
-    """A log y axis with plain tick labels (no superscripts, which print below 7 pt): every minor tick labelled
-    when the trace spans less than a decade, else only 2, 3 and 5 times a power of ten."""
-    from matplotlib.ticker import FormatStrFormatter, FuncFormatter
+    """A log y axis with plain tick labels (no superscripts, which print below 7 pt) spread over the whole range
+    shown (:func:`bsrbench.reporting.plots.label_log_axis`)."""
+    from .plots import label_log_axis
 
-    from .plots import _minor_log_label
-
-    ax.set_yscale("log")
-    lo, hi = ax.get_ylim()
-    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
-    every = hi / lo < 10
-    ax.yaxis.set_minor_formatter(FuncFormatter((lambda v, _pos=None: f"{v:.3g}") if every else _minor_log_label))
+    label_log_axis(ax)
 
 
 def _informative(a):

@@ -63,10 +63,64 @@ def _size_axis(ax, sizes):
     ax.set_xlim(min(sizes) / 1.25, max(sizes) * 1.25)
 
 
-def _minor_log_label(v, _pos=None):
-    """Labels of the minor ticks of a log axis: only 2, 3 and 5 times a power of ten (the others stay bare)."""
-    lead = v / 10 ** math.floor(math.log10(v)) if v > 0 else 0
-    return f"{v:g}" if round(lead, 6) in (2.0, 3.0, 5.0) else ""
+#: Leading digits of the labelled ticks of a log axis, sparsest first: :func:`_log_ticks` takes the first set
+#: that labels the shown range evenly enough.
+_LOG_TICK_SETS = ((1,), (1, 2, 5), (1, 2, 3, 5), (1, 1.5, 2, 3, 5, 7), (1, 1.5, 2, 3, 4, 5, 6, 8),
+                  (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 7, 8, 9))
+
+
+def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
+    """Labelled tick values of a log axis shown over [lo, hi] (lo > 0).
+
+    The ticks are ``lead x 10^k`` with ``lead`` from the sparsest set of :data:`_LOG_TICK_SETS` that puts at
+    least ``min_labels`` ticks in the range, leaves no gap between two ticks wider than ``max_gap`` times the
+    range and none between an end of the axis and its nearest tick wider than half that (in log scale). If no
+    set meets both bounds, the set with at least ``min_labels`` ticks that exceeds them least; if none has that
+    many (a range narrower than about a factor 1.5), evenly spaced ticks (matplotlib's MaxNLocator). So a range
+    that crosses a power of ten is labelled on both sides of it (7-20: 7, 10, 15, 20), and 3-25 gets 3, 5, 10, 20.
+    """
+    llo, lhi = math.log10(lo), math.log10(hi)
+    span = max(lhi - llo, 1e-12)
+    best = None
+    for leads in _LOG_TICK_SETS:
+        ticks = [lead * 10.0**k for k in range(math.floor(llo) - 1, math.ceil(lhi) + 1) for lead in leads]
+        ticks = [float(f"{t:.6g}") for t in ticks if lo <= t <= hi]
+        if len(ticks) < min_labels:
+            continue
+        logs = [math.log10(t) for t in ticks]
+        inner = max((b - a for a, b in zip(logs, logs[1:])), default=0.0)
+        excess = max(inner / (max_gap * span), max(logs[0] - llo, lhi - logs[-1]) / (max_gap * span / 2))
+        if excess <= 1.0:
+            return ticks
+        if best is None or excess < best[0]:
+            best = (excess, ticks)
+    if best is not None:
+        return best[1]
+    linear = matplotlib.ticker.MaxNLocator(nbins=min_labels + 1, steps=[1, 2, 2.5, 5, 10],
+                                          min_n_ticks=min_labels).tick_values(lo, hi)
+    return [float(f"{t:.6g}") for t in linear if lo <= t <= hi]
+
+
+class _LogTickLocator(matplotlib.ticker.Locator):
+    """Labelled ticks of a log axis at :func:`_log_ticks` of the range shown when the axis is drawn (so limits set
+    after it, and axes that share it, are labelled too)."""
+
+    def __call__(self):
+        return self.tick_values(*self.axis.get_view_interval())
+
+    def tick_values(self, vmin, vmax):
+        lo, hi = sorted((float(vmin), float(vmax)))
+        return _log_ticks(lo, hi) if lo > 0 and np.isfinite(hi) and hi > lo else []
+
+
+def label_log_axis(ax):
+    """Make ``ax``'s y axis logarithmic with plain labels (``%g``: no superscripts, which print below 7 pt) at
+    :class:`_LogTickLocator`'s ticks, and bare minor ticks (for grid lines) at 2..9 times a power of ten."""
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(_LogTickLocator())
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_locator(matplotlib.ticker.LogLocator(subs=np.arange(2, 10)))
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
 
 
 def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
@@ -114,14 +168,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
                 ax.plot(pp["n_train"] * dodge, pp["mean_deg"], ls=":", lw=0.9, color=c, marker=mk, mfc="white",
                         ms=4.5)
         ax.set_title(activity_label(act, pa))
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-        ax.autoscale_view()
-        lo, hi = ax.get_ylim()
-        # less than a decade shown: label every minor tick, else only 2, 3 and 5 times a power of ten
-        every = hi / lo < 10
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
-            (lambda v, _pos=None: f"{v:g}") if every else _minor_log_label))
+        label_log_axis(ax)  # labelled on both sides of a power of ten, whatever the range
         _size_axis(ax, sizes)
         ax.set_xlabel("training frames N")
         ax.set_ylabel("mean angle error (degrees)")

@@ -35,7 +35,17 @@ _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tabl
 
 def publish(src, dest):
     """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first
-    (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds)."""
+    (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds).
+
+    ``dest``'s folder must exist (a mistyped destination is an error, not a new folder): DataFileError naming
+    ``dest`` otherwise, before anything is read or written."""
+    parent = Path(dest).parent
+    if not parent.is_dir():
+        what = "is not a folder" if parent.exists() else "does not exist"
+        raise DataFileError(
+            dest, f"cannot write the published table: its folder {str(parent)!r} {what}; expected the path of a "
+            f"table in an existing folder, e.g. reports/published/paper.csv"
+        )
     df = read_results(src)
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
     try:
