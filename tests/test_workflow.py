@@ -226,6 +226,8 @@ def test_ci_pdf_and_html_report(ci_run):
     html = (ci_run / "reports" / "ci" / "report.html").read_text()
     assert len(html) > 10_000
     assert "study <strong>ci</strong>" in html  # the report names it
+    # and embeds this study's report files only (before, reports/tables etc. of whichever study wrote last)
+    assert set(re.findall(r"reports/[A-Za-z0-9_.-]+/", html)) == {"reports/ci/"}
 
 
 def test_job_server_stopped_with_the_run_and_left_no_files(ci_run):
@@ -375,6 +377,31 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
 def test_ci_rerun_is_a_no_op(ci_run):
     res = smk("reports/ci/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
+
+
+@pytest.mark.slow
+def test_two_studies_run_at_once_in_one_working_tree(ci_run):
+    """With the shared features built (the ci run built those of hsc/golf), the CI-scale ablation runs while the
+    ci study redoes its aggregate and report: Snakemake's directory lock admits both runs (before, both wrote
+    reports/tables, reports/figures and reports/report.pdf, and the second stopped with LockException), both
+    finish, each report is its own, and the ci tables come out unchanged."""
+    tables = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    runs = {
+        "ablation-ci": ["--configfile", "config/ablation.yaml", "config/ablation-ci.yaml"],
+        "ci": ["--configfile", "config/ci.yaml", "--forcerun", "aggregate"],
+    }
+    procs = {study: subprocess.Popen([SNAKEMAKE, f"reports/{study}/report.pdf", "--cores", "1", *args], cwd=ci_run,
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+             for study, args in runs.items()}
+    outs = {study: p.communicate(timeout=900)[0] for study, p in procs.items()}
+    for study, p in procs.items():
+        assert p.returncode == 0, f"{study}:\n" + outs[study][-4000:]
+        assert "LockException" not in outs[study]
+    assert re.search(r"^localrule aggregate:", outs["ci"], re.M)  # the ci run did redo its report
+    pdfs = [(ci_run / "reports" / study / "report.pdf").read_bytes() for study in runs]
+    assert all(pdf[:5] == b"%PDF-" for pdf in pdfs) and pdfs[0] != pdfs[1]
+    assert {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")} == tables
 
 
 @pytest.mark.slow
