@@ -37,7 +37,7 @@ def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
 @pytest.fixture(scope="module")
 def ablation_run(tmp_path_factory):
     work = copy_tree(tmp_path_factory.mktemp("ablation"))
-    res = smk("reports/report.pdf", "--cores", "2", *ABLATION, cwd=work, timeout=900)
+    res = smk("reports/ablation-ci/report.pdf", "--cores", "2", *ABLATION, cwd=work, timeout=900)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work
 
@@ -61,13 +61,13 @@ def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
 
 
 def test_report_has_the_convergence_table_and_the_section(ablation_run):
-    tex = (ablation_run / "reports" / "tables" / "why_pm.tex").read_text()
+    tex = (ablation_run / "reports" / "ablation-ci" / "tables" / "why_pm.tex").read_text()
     assert r"\section{Why PM trails the paper here}" in tex
     assert re.search(r"^PM & 30 & 1 & 2 & \d\.\d\d & \d\.\d\d", tex, re.M), tex
     assert "beats 1-NN in" in tex and "figures/trace.pdf" in tex and "figures/gxy.pdf" in tex
-    conv = pd.read_csv(ablation_run / "reports" / "tables" / "convergence.csv")
+    conv = pd.read_csv(ablation_run / "reports" / "ablation-ci" / "tables" / "convergence.csv")
     assert set(conv["method"]) == {"PM", "PMK16", "PMj3"} and (conv["chains"] == 2).all()
-    pdf = ablation_run / "reports" / "report.pdf"
+    pdf = ablation_run / "reports" / "ablation-ci" / "report.pdf"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout
         assert "Why PM trails the paper here" in text and "Convergence" in text

@@ -77,6 +77,8 @@ def test_dry_run(args):
          r"'methods\.PM\.params' .*smallest n_train N = 30: BayesianSR needs at least max\(2, n_neighbors=40\)"),
         ("methods: {PM: {params: {thin: 200}}}", r"thin=200 retains no sweep of the n_iter - n_burn_in = 100"),
         ("cv: {mode: per_size, folds: 40}", r"'cv\.folds': 40 folds of the smallest n_train N = 30 .*empty folds"),
+        # reports/published holds the committed tables; reports/{study} is a study's report folder
+        ("study: published", r"'published' should not be valid under \{'enum'"),
     ],
 )
 def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_path):
@@ -123,6 +125,49 @@ def test_boolean_on_the_command_line(tmp_path):
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
 
 
+#: Files that every study shares: the features and poses (and their inputs and logs), built once for all.
+SHARED_PREFIXES = ("results/features/", "results/mocap/", "resources/", "logs/features/", "logs/mocap/",
+                   "logs/download/")
+
+
+def _planned_files(res):
+    """The output and log files of the jobs of a dry run (Snakemake's job listing)."""
+    return [f.strip() for ln in res.stdout.splitlines() if ln.strip().startswith(("output:", "log:"))
+            for f in ln.split(":", 1)[1].split(",")]
+
+
+def test_two_studies_share_no_report_result_or_log_file():
+    """Each study's report is in reports/{study}/ (before: reports/tables, reports/figures and reports/report.pdf
+    for every study, so that the PDF and `snakemake --report` showed whichever study wrote last). Only the shared
+    features and poses are in both studies' jobs: once they are built, Snakemake's directory lock (which refuses a
+    run whose jobs would write a file that a running one reads or writes) lets the two studies run at once."""
+    planned = {}
+    for study, args in (("ci", ("--configfile", "config/ci.yaml")),
+                        ("ablation-ci", ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml"))):
+        res = smk("-n", "--forceall", "--cores", "1", *args)
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+        planned[study] = set(_planned_files(res))
+        reports = sorted(f for f in planned[study] if f.startswith("reports/"))
+        assert {f"reports/{study}/report.pdf", f"reports/{study}/tables/why_pm.tex"} <= set(reports)
+        assert all(f.startswith(f"reports/{study}/") for f in reports), reports
+        assert any(f.startswith(f"logs/{study}/report/") for f in planned[study])
+    both = planned["ci"] & planned["ablation-ci"]
+    assert "results/features/hsc/golf.npz" in both  # the check below sees the jobs of both studies
+    assert all(f.startswith(SHARED_PREFIXES) for f in both), sorted(both)
+
+
+@pytest.mark.parametrize("args", [("--report", "reports/report.html"), ("--report=reports/paper/report.html",)],
+                         ids=["shared-folder", "other-study"])
+def test_the_html_report_goes_to_the_study_folder(args, tmp_path):
+    """The HTML report of study ci is refused in reports/ itself or in another study's folder, where it would
+    pass for that study's (the report's location is the one place Snakemake leaves to the command line)."""
+    res = smk("--configfile", "config/ci.yaml", *args, cwd=copy_tree(tmp_path))
+    out = res.stdout + res.stderr
+    assert res.returncode != 0, out[-3000:]
+    assert "the HTML report of study 'ci' goes to its report folder reports/ci/" in out, out[-3000:]
+    assert not list((tmp_path / "reports").rglob("*.html"))
+
+
 def copy_tree(work):
     """The workflow, profiles and configs in ``work`` (resources linked, not copied), so that no result of the
     working tree counts."""
@@ -139,7 +184,7 @@ def copy_tree(work):
 def ci_run(tmp_path_factory):
     """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
     work = copy_tree(tmp_path_factory.mktemp("study"))
-    res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=900)
+    res = smk("reports/ci/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=900)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work
 
@@ -158,27 +203,31 @@ def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
 
 def test_ci_tables_have_the_paper_rows(ci_run):
     for table, names in PAPER_TABLE_ROWS.items():
-        text = (ci_run / "reports" / "tables" / f"table{table}_hsc.tex").read_text()
+        text = (ci_run / "reports" / "ci" / "tables" / f"table{table}_hsc.tex").read_text()
         assert r"\toprule" in text and r"\bottomrule" in text
         rows = [ln.split(" & ")[0] for ln in text.splitlines() if ln.endswith(r"\\") and not ln.startswith(r"\emph")]
         assert rows[0] == "Activity"
         assert list(dict.fromkeys(rows[1:])) == names
-    golf = [ln for ln in (ci_run / "reports/tables/tableI_hsc.tex").read_text().splitlines() if ln.startswith("Golf & 30")]
+    table_i = (ci_run / "reports/ci/tables/tableI_hsc.tex").read_text()
+    golf = [ln for ln in table_i.splitlines() if ln.startswith("Golf & 30")]
     assert len(golf) == 1 and golf[0].count(r"\textbf") >= 1 and golf[0].count(r"$\pm$") == 7
 
 
 def test_ci_pdf_and_html_report(ci_run):
-    pdf = ci_run / "reports" / "report.pdf"
+    pdf = ci_run / "reports" / "ci" / "report.pdf"
     assert pdf.read_bytes()[:5] == b"%PDF-"
     if shutil.which("pdfinfo"):
         info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True).stdout
         assert int(re.search(r"Pages:\s+(\d+)", info).group(1)) >= 3
-    res = smk("--configfile", "config/ci.yaml", "--report", "reports/report.html", cwd=ci_run)
+    res = smk("--configfile", "config/ci.yaml", "--report", "reports/ci/report.html", cwd=ci_run)
     assert res.returncode == 0, res.stderr[-3000:]
     # snakemake issue #4280: the default `disk` resource's size coroutine is never awaited (see the profile)
     assert "never awaited" not in res.stderr, res.stderr[-3000:]
-    assert (ci_run / "reports" / "report.html").stat().st_size > 10_000
-    assert "study <strong>ci</strong>" in (ci_run / "reports" / "report.html").read_text()  # the report names it
+    html = (ci_run / "reports" / "ci" / "report.html").read_text()
+    assert len(html) > 10_000
+    assert "study <strong>ci</strong>" in html  # the report names it
+    # and embeds this study's report files only (before, reports/tables etc. of whichever study wrote last)
+    assert set(re.findall(r"reports/[A-Za-z0-9_.-]+/", html)) == {"reports/ci/"}
 
 
 def test_job_server_stopped_with_the_run_and_left_no_files(ci_run):
@@ -203,10 +252,12 @@ def test_another_study_touches_nothing_of_this_one(ci_run, args):
     study = "other" if "study=other" in args else "paper"
     fits = [f for f in planned if "/fit/" in f]
     assert fits and all(f.startswith(f"results/{study}/fit/") for f in fits)
-    assert not [f for f in planned if f.startswith("results/ci/")]
-    # shared features and poses stay up to date too (only reports/, which names the study it shows, is redone)
-    assert not [f for f in planned if f.startswith("results/") and (ci_run / f).exists()]
-    assert r"Study: \textbf{ci}" in (ci_run / "reports" / "tables" / "findings.tex").read_text()
+    assert not [f for f in planned if f.startswith(("results/ci/", "reports/ci/", "logs/ci/"))]
+    # its report goes to its own folder, and shared features and poses stay up to date too: nothing planned exists
+    reports = [f for f in planned if f.startswith("reports/")]
+    assert f"reports/{study}/report.pdf" in reports and all(f.startswith(f"reports/{study}/") for f in reports)
+    assert not [f for f in planned if (ci_run / f).exists()]
+    assert r"Study: \textbf{ci}" in (ci_run / "reports" / "ci" / "tables" / "findings.tex").read_text()
 
 
 #: Rules submitted as cluster jobs under profiles/slurm; every other rule is in the Snakefile's `localrules`.
@@ -227,10 +278,10 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
 
     Snakemake's dry run does not mark local rules (it leaves the decision to execution), so this is a real run
     of the SLURM profile; no SLURM is installed here, so a rule that was submitted would fail."""
-    for d in ("results/ci/aggregate", "reports/tables", "reports/figures"):
+    for d in ("results/ci/aggregate", "reports/ci/tables", "reports/ci/figures"):
         shutil.rmtree(ci_run / d)
-    (ci_run / "reports" / "report.pdf").unlink()
-    targets = ["reports/report.pdf", "results/features/hsc/run.npz", "results/mocap/mocap/walk.npz"]
+    (ci_run / "reports" / "ci" / "report.pdf").unlink()
+    targets = ["reports/ci/report.pdf", "results/features/hsc/run.npz", "results/mocap/mocap/walk.npz"]
     res = smk(*targets, "--workflow-profile", "profiles/slurm", "--configfile", "config/ci.yaml", cwd=ci_run)
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-4000:]
@@ -241,7 +292,7 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
                          "report_why_pm",
                          "plot_subjective", "report_pdf", "features_mat", "mocap_poses"}
     assert submitted == set()  # and the fits and CV of the local run were not rerun: where they ran is no param
-    assert (ci_run / "reports" / "report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert (ci_run / "reports" / "ci" / "report.pdf").read_bytes()[:5] == b"%PDF-"
 
 
 @pytest.mark.skipif(shutil.which("sbatch") is not None, reason="a real SLURM: this would submit jobs")
@@ -259,10 +310,8 @@ def test_slurm_profile_submits_fit_and_cv_jobs(ci_run):
 
 def _snapshot(work):
     """Bytes of every report output (tables, figures, PDF, HTML) and of the aggregate table."""
-    paths = [*sorted((work / "reports").rglob("*.tex")), *sorted((work / "reports" / "figures").glob("*")),
-             work / "reports" / "report.pdf", work / "results" / "aggregate" / "results.csv"]
-    html = work / "reports" / "report.html"
-    return {p.relative_to(work): p.read_bytes() for p in paths + ([html] if html.exists() else []) if p.is_file()}
+    paths = [*sorted((work / "reports").rglob("*")), work / "results" / "ci" / "aggregate" / "results.csv"]
+    return {p.relative_to(work): p.read_bytes() for p in paths if p.is_file()}
 
 
 def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(ci_run):
@@ -275,8 +324,8 @@ def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(
         "run: [RVM, TGP, SR, DDL, PM, NN1, Ridge, GPR]\n"
     )
     args = ("--configfile", "config/ci.yaml", str(bad))
-    for cmd in (("--cores", "2", *args), ("reports/report.pdf", "--cores", "2", *args),
-                ("--report", "reports/report.html", *args)):
+    for cmd in (("--cores", "2", *args), ("reports/ci/report.pdf", "--cores", "2", *args),
+                ("--report", "reports/ci/report.html", *args)):
         res = smk(*cmd, cwd=ci_run)
         out = res.stdout + res.stderr
         assert res.returncode != 0, out[-3000:]
@@ -289,7 +338,7 @@ def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
     before = _snapshot(ci_run)
     more = ci_run / "seeds.yaml"
     more.write_text("n_seeds: 3\n")
-    res = smk("--configfile", "config/ci.yaml", str(more), "--report", "reports/report.html", cwd=ci_run)
+    res = smk("--configfile", "config/ci.yaml", str(more), "--report", "reports/ci/report.html", cwd=ci_run)
     out = res.stdout + res.stderr
     assert res.returncode != 0, out[-3000:]
     assert re.search(r"results\.csv: does not match the configuration.*seed: the table has \[0, 1\], "
@@ -301,41 +350,67 @@ def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(
     from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes
 
-    log = (ci_run / "reports" / "build" / "report.log").read_text(errors="replace")
+    log = (ci_run / "reports" / "ci" / "build" / "report.log").read_text(errors="replace")
     assert latex_log_problems(log, max_overfull_pt=1.0) == []
-    sizes = figure_text_sizes(ci_run / "reports" / "report.pdf")
-    n_figures = len(list((ci_run / "reports" / "figures").glob("*.pdf")))
+    sizes = figure_text_sizes(ci_run / "reports" / "ci" / "report.pdf")
+    n_figures = len(list((ci_run / "reports" / "ci" / "figures").glob("*.pdf")))
     assert len(sizes) >= n_figures - 1  # every figure with text (a trace may have none of ours)
     small = {k: min(v) for k, v in sizes.items() if min(v) < 7.0 - 1e-6}
     assert not small, f"figure text below 7 pt (page, figure): {small}"
 
 
 def test_ci_report_metadata_and_page_one_header(ci_run):
-    info = subprocess.run(["pdfinfo", str(ci_run / "reports" / "report.pdf")], capture_output=True, text=True).stdout
+    pdf = str(ci_run / "reports" / "ci" / "report.pdf")
+    info = subprocess.run(["pdfinfo", pdf], capture_output=True, text=True).stdout
     assert re.search(r"^Title:\s+bsrbench study report: reproducing", info, re.M), info
     assert re.search(r"^Author:\s+bsrbench workflow", info, re.M), info
-    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", "-layout", str(ci_run / "reports" / "report.pdf"), "-"],
+    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", "-layout", pdf, "-"],
                            capture_output=True, text=True).stdout
     for field in ("Built", "Code", "Configuration", "Machine"):
         assert re.search(rf"^\s*{field}\s", page1, re.M), page1[:2000]
     assert "config/ci.yaml" in page1 and "UTC" in page1
     # typewriter text copies as typed (underscores are glyphs, not rules)
-    text = subprocess.run(["pdftotext", str(ci_run / "reports" / "report.pdf"), "-"], capture_output=True, text=True).stdout
+    text = subprocess.run(["pdftotext", pdf, "-"], capture_output=True, text=True).stdout
     assert "study_activities.hsc" in text
 
 
 def test_ci_rerun_is_a_no_op(ci_run):
-    res = smk("reports/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
+    res = smk("reports/ci/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
 
 
 @pytest.mark.slow
+def test_two_studies_run_at_once_in_one_working_tree(ci_run):
+    """With the shared features built (the ci run built those of hsc/golf), the CI-scale ablation runs while the
+    ci study redoes its aggregate and report: Snakemake's directory lock admits both runs (before, both wrote
+    reports/tables, reports/figures and reports/report.pdf, and the second stopped with LockException), both
+    finish, each report is its own, and the ci tables come out unchanged."""
+    tables = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    runs = {
+        "ablation-ci": ["--configfile", "config/ablation.yaml", "config/ablation-ci.yaml"],
+        "ci": ["--configfile", "config/ci.yaml", "--forcerun", "aggregate"],
+    }
+    procs = {study: subprocess.Popen([SNAKEMAKE, f"reports/{study}/report.pdf", "--cores", "1", *args], cwd=ci_run,
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+             for study, args in runs.items()}
+    outs = {study: p.communicate(timeout=900)[0] for study, p in procs.items()}
+    for study, p in procs.items():
+        assert p.returncode == 0, f"{study}:\n" + outs[study][-4000:]
+        assert "LockException" not in outs[study]
+    assert re.search(r"^localrule aggregate:", outs["ci"], re.M)  # the ci run did redo its report
+    pdfs = [(ci_run / "reports" / study / "report.pdf").read_bytes() for study in runs]
+    assert all(pdf[:5] == b"%PDF-" for pdf in pdfs) and pdfs[0] != pdfs[1]
+    assert {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")} == tables
+
+
+@pytest.mark.slow
 def test_ci_tables_are_identical_when_everything_is_recomputed(ci_run):
-    before = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
-    for d in ("results/ci/fit", "results/ci/cv", "results/ci/aggregate", "reports/tables", "reports/figures"):
+    before = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
+    for d in ("results/ci/fit", "results/ci/cv", "results/ci/aggregate", "reports/ci/tables", "reports/ci/figures"):
         shutil.rmtree(ci_run / d)
-    (ci_run / "reports" / "report.pdf").unlink()
-    res = smk("reports/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run, timeout=900)
+    (ci_run / "reports" / "ci" / "report.pdf").unlink()
+    res = smk("reports/ci/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
-    after = {p.name: p.read_text() for p in (ci_run / "reports" / "tables").glob("*.tex")}
+    after = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
     assert after == before

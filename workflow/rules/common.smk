@@ -15,6 +15,9 @@ validate(config, "../schemas/config.schema.yaml")
 RESULTS = f"results/{config['study']}"
 #: Root of this study's logs.
 LOGS = f"logs/{config['study']}"
+#: Root of this study's report: tables, figures, the PDF (and, by `snakemake --report`, the HTML report); the
+#: template reports/report.tex and the published tables of reports/published are shared.
+REPORTS = f"reports/{config['study']}"
 
 
 wildcard_constraints:
@@ -279,14 +282,14 @@ def report_sources():
 
 def table_targets():
     return [
-        f"reports/tables/table{t}_{s}.tex" for s in report_sources() for t in ("I", "II")
+        f"{REPORTS}/tables/table{t}_{s}.tex" for s in report_sources() for t in ("I", "II")
     ]
 
 
 def figure_targets(ext):
-    out = [f"reports/figures/error_vs_ntrain_{s}.{ext}" for s in report_sources()]
-    out += [f"reports/figures/subjective_{s}.{ext}" for s in report_sources()]
-    out += [f"reports/figures/calibration_{s}.{ext}" for s in report_sources()]
+    out = [f"{REPORTS}/figures/error_vs_ntrain_{s}.{ext}" for s in report_sources()]
+    out += [f"{REPORTS}/figures/subjective_{s}.{ext}" for s in report_sources()]
+    out += [f"{REPORTS}/figures/calibration_{s}.{ext}" for s in report_sources()]
     return out
 
 
@@ -294,9 +297,9 @@ def why_pm_figures(ext):
     """Figures of the section "Why PM trails the paper here": chain traces and the g_xy mechanism."""
     out = []
     if config["report"].get("trace_method") in run_methods():
-        out.append(f"reports/figures/trace.{ext}")
+        out.append(f"{REPORTS}/figures/trace.{ext}")
     if config["report"].get("gxy_methods"):
-        out.append(f"reports/figures/gxy.{ext}")
+        out.append(f"{REPORTS}/figures/gxy.{ext}")
     return out
 
 
@@ -414,17 +417,38 @@ def study_targets():
         *table_targets(),
         *figure_targets("pdf"),
         *why_pm_figures("pdf"),
-        "reports/tables/why_pm.tex",
-        "reports/report.pdf",
+        f"{REPORTS}/tables/why_pm.tex",
+        f"{REPORTS}/report.pdf",
     ]
+
+
+def _report_arg(argv):
+    """The file of `--report FILE` / `--report=FILE` in ``argv``: None without --report, Snakemake's default
+    report.html when no file follows."""
+    for k, a in enumerate(argv):
+        if a.startswith("--report="):
+            return a.split("=", 1)[1]
+        if a == "--report":
+            nxt = argv[k + 1] if k + 1 < len(argv) else ""
+            return nxt if nxt and not nxt.startswith("-") else "report.html"
+    return None
 
 
 def _check_report_is_current():
     """`snakemake --report` embeds the outputs as they are on disk, without checking that they are current, and
     Snakefiles get no flag saying that a report is being built: so, on that command line, refuse an aggregate
-    table of another configuration (the one check that matters: the HTML report would show another study)."""
-    if not any(a == "--report" or a.startswith("--report=") for a in sys.argv):
+    table of another configuration (the one check that matters: the HTML report would show another study), and
+    an HTML file in another study's report folder (reports/{other}/, or the shared reports/ itself)."""
+    html = _report_arg(sys.argv)
+    if html is None:
         return
+    target, reports = Path(html).resolve(), Path("reports").resolve()
+    if target.is_relative_to(reports) and not target.is_relative_to(Path(REPORTS).resolve()):
+        raise ValueError(
+            f"--report {html}: the HTML report of study {config['study']!r} goes to its report folder {REPORTS}/ "
+            f"(e.g. --report {REPORTS}/report.html), not to a folder of reports/ shared with or owned by another "
+            f"study"
+        )
     aggregate = Path(f"{RESULTS}/aggregate/results.csv")
     if aggregate.exists():
         from bsrbench.reporting.tables import read_results

@@ -1,4 +1,6 @@
 # Tables, figures, generated text and the PDF report, all from {RESULTS}/aggregate/results.csv.
+# Every output is under reports/{study} (REPORTS): studies of different configurations never share a report file,
+# so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
 
 
 rule table:
@@ -7,13 +9,13 @@ rule table:
         paper="resources/paper-tables.csv",
     output:
         report(
-            "reports/tables/table{table}_{source}.tex",
+            f"{REPORTS}/tables/table{{table}}_{{source}}.tex",
             category="Tables",
             subcategory="{source}",
             caption="../report/tables.rst",
         ),
     log:
-        "logs/report/table{table}_{source}.log",
+        f"{LOGS}/report/table{{table}}_{{source}}.log",
     params:
         design=study_design(),
         methods=run_methods(),
@@ -35,10 +37,10 @@ rule report_text:
         results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
-        findings="reports/tables/findings.tex",
-        body="reports/tables/body.tex",
+        findings=f"{REPORTS}/tables/findings.tex",
+        body=f"{REPORTS}/tables/body.tex",
     log:
-        "logs/report/report_text.log",
+        f"{LOGS}/report/report_text.log",
     params:
         design=study_design(),
         labels=method_labels(),
@@ -62,15 +64,15 @@ rule plot_error_vs_ntrain:
         results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
-        pdf="reports/figures/error_vs_ntrain_{source}.pdf",
+        pdf=f"{REPORTS}/figures/error_vs_ntrain_{{source}}.pdf",
         png=report(
-            "reports/figures/error_vs_ntrain_{source}.png",
+            f"{REPORTS}/figures/error_vs_ntrain_{{source}}.png",
             category="Figures",
             subcategory="{source}",
             caption="../report/error_vs_ntrain.rst",
         ),
     log:
-        "logs/report/error_vs_ntrain_{source}.log",
+        f"{LOGS}/report/error_vs_ntrain_{{source}}.log",
     params:
         design=study_design(),
         n_train=config["n_train"],
@@ -87,15 +89,15 @@ rule plot_calibration:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
     output:
-        pdf="reports/figures/calibration_{source}.pdf",
+        pdf=f"{REPORTS}/figures/calibration_{{source}}.pdf",
         png=report(
-            "reports/figures/calibration_{source}.png",
+            f"{REPORTS}/figures/calibration_{{source}}.png",
             category="Figures",
             subcategory="{source}",
             caption="../report/calibration.rst",
         ),
     log:
-        "logs/report/calibration_{source}.log",
+        f"{LOGS}/report/calibration_{{source}}.log",
     params:
         design=study_design(),
         methods=run_methods(),
@@ -112,14 +114,14 @@ rule plot_trace:
         results=f"{RESULTS}/aggregate/results.csv",
         predictions=trace_input,
     output:
-        pdf="reports/figures/trace.pdf",
+        pdf=f"{REPORTS}/figures/trace.pdf",
         png=report(
-            "reports/figures/trace.png",
+            f"{REPORTS}/figures/trace.png",
             category="Figures",
             caption="../report/trace.rst",
         ),
     log:
-        "logs/report/trace.log",
+        f"{LOGS}/report/trace.log",
     params:
         method=config["report"]["trace_method"],
         labels=method_labels(),
@@ -135,14 +137,14 @@ rule plot_gxy:
         results=f"{RESULTS}/aggregate/results.csv",
         predictions=gxy_inputs,
     output:
-        pdf="reports/figures/gxy.pdf",
+        pdf=f"{REPORTS}/figures/gxy.pdf",
         png=report(
-            "reports/figures/gxy.png",
+            f"{REPORTS}/figures/gxy.png",
             category="Figures",
             caption="../report/gxy.rst",
         ),
     log:
-        "logs/report/gxy.log",
+        f"{LOGS}/report/gxy.log",
     params:
         labels=method_labels(),
     threads: 1
@@ -157,14 +159,14 @@ rule report_why_pm:
         results=f"{RESULTS}/aggregate/results.csv",
         paper="resources/paper-tables.csv",
     output:
-        section="reports/tables/why_pm.tex",
+        section=f"{REPORTS}/tables/why_pm.tex",
         convergence=report(
-            "reports/tables/convergence.csv",
+            f"{REPORTS}/tables/convergence.csv",
             category="Tables",
             caption="../report/convergence.rst",
         ),
     log:
-        "logs/report/why_pm.log",
+        f"{LOGS}/report/why_pm.log",
     params:
         variants=pm_variants(),
         base=config["report"].get("trace_method") or "PM",
@@ -183,15 +185,15 @@ rule plot_subjective:
         unpack(subjective_inputs),
         results=f"{RESULTS}/aggregate/results.csv",
     output:
-        pdf="reports/figures/subjective_{source}.pdf",
+        pdf=f"{REPORTS}/figures/subjective_{{source}}.pdf",
         png=report(
-            "reports/figures/subjective_{source}.png",
+            f"{REPORTS}/figures/subjective_{{source}}.png",
             category="Figures",
             subcategory="{source}",
             caption="../report/subjective.rst",
         ),
     log:
-        "logs/report/subjective_{source}.log",
+        f"{LOGS}/report/subjective_{{source}}.log",
     params:
         design=study_design(),
         methods=subjective_methods(),
@@ -216,12 +218,12 @@ rule report_pdf:
         text=rules.report_text.output,
         tables=table_targets(),
         figures=figure_targets("pdf"),
-        why_pm="reports/tables/why_pm.tex",
+        why_pm=rules.report_why_pm.output.section,
         why_pm_figures=why_pm_figures("pdf"),
     output:
-        report("reports/report.pdf", category="Report", caption="../report/report.rst"),
+        report(f"{REPORTS}/report.pdf", category="Report", caption="../report/report.rst"),
     log:
-        "logs/report/report_pdf.log",
+        f"{LOGS}/report/report_pdf.log",
     params:
         # named on page 1 of the report (with the date, the git commit and the machine), in the order they apply
         configfiles=[

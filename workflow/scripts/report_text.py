@@ -10,6 +10,7 @@ from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E
 from bsrbench.study import estimator_defaults  # noqa: E402
 
 sm = snakemake  # noqa: F821
+root = Path(sm.output.body).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
 labels = dict(sm.params.labels)
 first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
 df = read_results(sm.input.results, design=dict(sm.params.design))
@@ -77,11 +78,11 @@ figures = []
 for f in sm.params.figures:
     stem = Path(f).stem
     kind = next(k for k in KINDS if stem.startswith(k))
-    figures.append((Path(f).relative_to("reports"), caption(kind, stem[len(kind) + 1 :])))
+    figures.append((Path(f).relative_to(root), caption(kind, stem[len(kind) + 1 :])))
 status = dict(sm.params.status)
 write_body(
     sm.output.body,
-    tables=[Path(t).relative_to("reports") for t in sm.params.tables],
+    tables=[Path(t).relative_to(root) for t in sm.params.tables],
     figures=figures,
     notes={s: missing_data_note(s, dict(st)) for s, st in status.items()},
 )

@@ -20,7 +20,8 @@ CAPTIONS = {
 }
 df = read_results(sm.input.results)
 paper = read_paper_tables(sm.input.paper)
-figures = [(Path(f).relative_to("reports").as_posix(), CAPTIONS[Path(f).stem]) for f in sm.params.figures]
+root = Path(sm.output.section).parent.parent  # the study's report folder reports/{study}; LaTeX paths are from it
+figures = [(Path(f).relative_to(root).as_posix(), CAPTIONS[Path(f).stem]) for f in sm.params.figures]
 text = why_pm_section(df, paper, variants=list(sm.params.variants), labels=dict(sm.params.labels), figures=figures,
                       base=sm.params.base, nn=sm.params.nn)
 write_why_pm(sm.output.section, text)

@@ -277,7 +277,7 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
 def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1"):
     """The LaTeX section "Why PM trails the paper here" (input by reports/report.tex).
 
-    ``figures``: list of (path relative to reports/, caption).
+    ``figures``: list of (path relative to the study's report folder reports/{study}, caption).
     """
     lines = ["% generated from the study's aggregate table", r"\section{Why PM trails the paper here}", ""]
     lines.append(

@@ -397,7 +397,7 @@ def missing_data_note(source, status):
 
 
 def write_body(path, *, tables, figures, notes=None):
-    """The fragment with the tables and figures (paths relative to reports/).
+    """The fragment with the tables and figures (paths relative to the study's report folder, reports/{study}).
 
     ``tables``: paths of the table fragments (``table<T>_<source>.tex``); after the last table of a source
     comes ``notes[source]`` (see :func:`missing_data_note`). ``figures``: (path, caption) pairs. Figures are
@@ -469,19 +469,24 @@ def build_header(*, configfiles, when=None, root="."):
     )
 
 
-def build_pdf(tex, pdf, *, log=None, header=None):
-    """Run latexmk (pdflatex) on ``tex`` in its folder, output in ``<folder>/build``; copy the PDF to ``pdf``.
+def build_pdf(tex, pdf, *, root=None, log=None, header=None):
+    """Run latexmk (pdflatex) on the template ``tex`` in the folder ``root`` (default: the template's folder),
+    output in ``<root>/build``; copy the PDF to ``pdf``.
 
-    ``header``: LaTeX written to ``build/header.tex`` first (the template inputs it; see :func:`build_header`).
+    TeX looks for the files the template inputs (``tables/*.tex``, ``figures/*.pdf``, ``build/header.tex``) in the
+    folder it runs in, so one template serves every study's report folder (``reports/{study}``).
+    ``header``: LaTeX written to ``<root>/build/header.tex`` first (the template inputs it; see
+    :func:`build_header`). Raises InputError without latexmk, RuntimeError if LaTeX fails (naming its log).
     """
     tex = Path(tex).resolve()
+    root = Path(root).resolve() if root is not None else tex.parent
     if shutil.which("latexmk") is None:
         raise InputError("latexmk is not installed (bin/setup installs TeX Live); cannot build the PDF")
-    build = tex.parent / "build"
-    build.mkdir(exist_ok=True)
+    build = root / "build"
+    build.mkdir(parents=True, exist_ok=True)
     (build / "header.tex").write_text(header if header is not None else "")
-    cmd = ["latexmk", "-pdf", "-interaction=nonstopmode", "-halt-on-error", f"-outdir={build}", tex.name]
-    res = subprocess.run(cmd, cwd=tex.parent, capture_output=True, text=True)
+    cmd = ["latexmk", "-pdf", "-interaction=nonstopmode", "-halt-on-error", f"-outdir={build}", str(tex)]
+    res = subprocess.run(cmd, cwd=root, capture_output=True, text=True)
     if log is not None:
         Path(log).write_text(res.stdout + res.stderr)
     if res.returncode != 0:
