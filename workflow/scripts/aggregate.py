@@ -1,4 +1,4 @@
-"""Snakemake adapter of rule aggregate: result rows (JSON) -> results/aggregate/results.csv.
+"""Snakemake adapter of rule aggregate: result rows (JSON) -> results/{study}/aggregate/results.csv.
 
 The convergence columns (n_chains, r_hat_*, ess_bulk_*) are always present, NaN where not computed.
 """
