@@ -1,0 +1,99 @@
+"""Interleaved A/B timing of the BayesianSR Gibbs sweep: this checkout's kernels against an older revision's, in
+one process, on one core; prints a Markdown table.
+
+Separate runs of benchmarks/bench_bsr.py on a shared machine differ by 20-30% (load, and the drift of g_xy in the
+chain being timed), too much to tell a 20% change in one cell from noise. Here both kernels run in the same
+process, alternating batch by batch (10 sweeps per batch, 15 batches each, medians of the calling thread's CPU
+time per sweep), each on its own copy of the same starting state (a state after 2 sweeps, as in bench_bsr.py) and
+its own Generator with the same seed, so load and drift hit both alike.
+
+The old revision's package is extracted with ``git archive <rev> src/bsrbench`` into a temporary folder and
+imported under another name, so both numba kernels live side by side (their caches are keyed by file path).
+Run from the repository root:
+    python benchmarks/bench_bsr_ab.py b54c7e1                 # the commit before issue 12's blocked code update
+    python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
+"""
+
+import os
+
+for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import importlib  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import bench_bsr as bb  # noqa: E402
+from bsrbench.models import _bsr_kernels as new  # noqa: E402
+
+DEFAULT_SIZES = ("30x64", "30x128", "60x64", "60x128", "100x196", "200x256")
+
+
+def old_kernels(rev, workdir):
+    """The ``_bsr_kernels`` module of git revision ``rev``, imported as ``bsrbench_<rev>.models._bsr_kernels``."""
+    name = "bsrbench_" + "".join(c if c.isalnum() else "_" for c in rev)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src/bsrbench"], capture_output=True)
+    if archive.returncode != 0:
+        raise SystemExit(f"git archive {rev}: {archive.stderr.decode().strip()}")
+    subprocess.run(["tar", "-x", "-C", workdir], input=archive.stdout, check=True)
+    (Path(workdir) / "src" / "bsrbench").rename(Path(workdir) / name)
+    sys.path.insert(0, workdir)
+    return importlib.import_module(f"{name}.models._bsr_kernels")
+
+
+def sweeper(mod, state, data, hyper, w_update, atom_update, seed=5):
+    s = mod.BSRState(*[np.array(a, copy=True) for a in state])
+    d, h, rng = mod.BSRData(*data), mod.BSRHyper(*hyper), np.random.default_rng(seed)
+    return lambda: mod.gibbs_sweep(s, d, h, rng, w_update, atom_update)
+
+
+def interleaved(fa, fb, batches, per_batch):
+    """Median CPU seconds per call of fa and fb, timed in alternating batches after 3 untimed calls each."""
+    for f in (fa, fb):
+        for _ in range(3):
+            f()
+    ta, tb = [], []
+    for _ in range(batches):
+        for f, out in ((fa, ta), (fb, tb)):
+            c = time.thread_time()
+            for _ in range(per_batch):
+                f()
+            out.append((time.thread_time() - c) / per_batch)
+    return float(np.median(ta)), float(np.median(tb))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("rev", help="the older git revision (e.g. a commit before a kernel change)")
+    ap.add_argument("--sizes", nargs="+", default=DEFAULT_SIZES, help="NxK cells (default: %(default)s)")
+    ap.add_argument("--w-update", default="ess", choices=("ess", "mh"))
+    ap.add_argument("--atom-update", default="block", choices=("block", "single"))
+    ap.add_argument("--batches", type=int, default=15)
+    ap.add_argument("--per-batch", type=int, default=10)
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        old = old_kernels(args.rev, tmp)
+        print(f"sweep ({args.w_update} logits, {args.atom_update} atoms), {args.rev} against this checkout, "
+              f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
+              f"load average at the start {os.getloadavg()[0]:.1f}\n")
+        print(f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|")
+        for cell in args.sizes:
+            N, K = (int(v) for v in cell.lower().split("x"))
+            state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
+            fo = sweeper(old, state, data, hyper, args.w_update, args.atom_update)
+            fn = sweeper(new, state, data, hyper, args.w_update, args.atom_update)
+            to, tn = interleaved(fo, fn, args.batches, args.per_batch)
+            print(f"| {N} | {K} | {1e3 * to:.3f} | {1e3 * tn:.3f} | {to / tn:.2f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
