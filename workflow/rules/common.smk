@@ -275,6 +275,16 @@ def pm_variants():
     return [m for m in run_methods() if method_setting(m)["estimator"] == est]
 
 
+def table_methods():
+    """The methods of Tables I-II and of the error and calibration figures: every run method but the PM variants
+    other than the reference variant (report.trace_method); the variants have the ablation table of the section
+    "Why PM trails the paper here" (23 columns would not fit a page)."""
+    variants = pm_variants()
+    ref = config["report"].get("trace_method") or "PM"
+    keep = ref if ref in run_methods() else (variants[0] if variants else None)
+    return [m for m in run_methods() if m not in variants or m == keep]
+
+
 def report_sources():
     """Data sources with at least one studied activity."""
     return [s for s, acts in config["study_activities"].items() if acts]

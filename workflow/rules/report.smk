@@ -18,7 +18,7 @@ rule table:
         f"{LOGS}/report/table{{table}}_{{source}}.log",
     params:
         design=study_design(),
-        methods=run_methods(),
+        methods=table_methods(),
         labels=method_labels(),
         n_train=config["n_train"],
         protocols=config["protocols"],
@@ -76,7 +76,7 @@ rule plot_error_vs_ntrain:
     params:
         design=study_design(),
         n_train=config["n_train"],
-        methods=run_methods(),
+        methods=table_methods(),
         labels=method_labels(),
     threads: 1
     conda:
@@ -100,7 +100,7 @@ rule plot_calibration:
         f"{LOGS}/report/calibration_{{source}}.log",
     params:
         design=study_design(),
-        methods=run_methods(),
+        methods=table_methods(),
         labels=method_labels(),
     threads: 1
     conda:
