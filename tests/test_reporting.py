@@ -270,6 +270,28 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
         plt.close(fig)
 
 
+@pytest.mark.parametrize("protocols, shown", [(("contiguous",), "contiguous"), (("contiguous", "random"), "random")])
+def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown):
+    """A study without the random protocol (the ablation) still gets its calibration curves, titled by protocol."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import plot_calibration
+
+    rows = []
+    for protocol in protocols:
+        cov = {"random": 0.4, "contiguous": 0.2}[protocol]
+        for r in _rows({("golf", "PM"): [8.0, 9.0]}):
+            rows.append(dict(r, protocol=protocol, coverage_50=cov, coverage_90=2 * cov))
+    fig = plot_calibration(aggregate_rows(rows), methods=["PM"], labels=LABELS, source="hsc")
+    ax = fig.axes[0]
+    lines = [ln for ln in ax.get_lines() if ln.get_label() == LABELS["PM"]]
+    assert len(lines) == 1
+    np.testing.assert_allclose(lines[0].get_ydata(), [0.4, 0.8] if shown == "random" else [0.2, 0.4])
+    assert ax.get_title() == ("N = 30" if shown == "random" else "N = 30 (contiguous)")
+    assert not [t for t in ax.texts if "no method" in t.get_text()]
+    plt.close(fig)
+
+
 def _error_axis_labels(lo, hi):
     """Fig. 1 for errors from about ``lo`` (N = 100) to ``hi`` (N = 30) degrees: (y limits, {value: label} of the
     labelled y ticks inside them), read from the drawn canvas (major and minor ticks)."""

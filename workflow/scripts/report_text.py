@@ -57,7 +57,8 @@ def caption(kind, source):
         )
     if kind == "calibration":
         return (
-            f"Calibration on the {source} data (random protocol), one panel per $N$: the share of the test angles "
+            f"Calibration on the {source} data (the random protocol; another, named in the panel titles, if the "
+            "study did not run it), one panel per $N$: the share of the test angles "
             "inside the central predictive interval against the interval's nominal level, for the methods "
             "with predictive intervals; line: mean over seeds, band: minimum to maximum. A calibrated method "
             "follows the dashed diagonal."

@@ -190,10 +190,14 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
 def plot_calibration(df, *, methods, labels, source=None):
     """Empirical coverage of the central predictive intervals against the nominal level, one panel per N.
 
-    Only jobs of ``source`` (all if None) under the random protocol; line: mean over seeds, band: min-max.
+    Only jobs of ``source`` (all if None) under one protocol: the random protocol (the paper's) if the results
+    have it, else the first in alphabetical order; it is named in the panel titles. Line: mean over seeds, band:
+    min-max.
     """
     if source is not None:
         df = df[df["source"] == source]
+    protocols = sorted(df["protocol"].unique()) if "protocol" in df.columns else []
+    protocol = "random" if "random" in protocols or not protocols else protocols[0]
     cols = sorted((c for c in df.columns if c.startswith("coverage_")), key=lambda c: int(c.split("_")[1]))
     levels = np.array([int(c.split("_")[1]) / 100 for c in cols])
     sizes = sorted(df["n_train"].unique())
@@ -203,7 +207,7 @@ def plot_calibration(df, *, methods, labels, source=None):
     for ax, n in zip(axes, sizes):
         ax.plot([0, 1], [0, 1], color="0.5", lw=0.8, ls="--", label="ideal")
         for i, m in enumerate(methods):
-            d = df[(df["method"] == m) & (df["n_train"] == n) & (df["protocol"] == "random")]
+            d = df[(df["method"] == m) & (df["n_train"] == n) & (df["protocol"] == protocol)]
             if d.empty or not cols or d[cols].isna().all().all():
                 continue
             mean = d[cols].mean().to_numpy(float)
@@ -212,7 +216,7 @@ def plot_calibration(df, *, methods, labels, source=None):
             ax.plot(levels, mean, marker=_MARKERS[i % len(_MARKERS)], ms=3, lw=1, color=c, label=labels.get(m, m))
             ax.fill_between(levels, lo, hi, alpha=0.15, color=c)
             any_line = True
-        ax.set_title(f"N = {n}")
+        ax.set_title(f"N = {n}" + ("" if protocol == "random" else f" ({protocol})"))
         ax.set_xlabel("nominal coverage")
         ax.set_ylabel("empirical coverage")
         ax.set_xlim(0.4, 1)
