@@ -143,6 +143,28 @@ def test_findings_count_where_the_claim_holds():
     assert "holds" not in plain and "0 of 2 activities" not in plain
 
 
+def test_the_paper_claim_is_counted_from_the_paper_table_not_asserted():
+    """Before: the summary said "in the paper's Tables I and II, PM has the lowest error in every row", but the
+    paper's own table has rows where SR beats PM (throw and catch football, N = 100 and 200)."""
+    paper = _paper()
+    extra = pd.DataFrame([
+        {"table": "II", "activity": "Throw and catch football", "n_train": 100, "method": "SR", "mean_deg": 9.09,
+         "std_deg": 1.0},
+        {"table": "II", "activity": "Throw and catch football", "n_train": 100, "method": "PM", "mean_deg": 9.54,
+         "std_deg": 1.0},
+        {"table": "II", "activity": "Throw and catch football", "n_train": 200, "method": "PM", "mean_deg": 7.0,
+         "std_deg": 1.0},  # PM alone: not a comparison, not counted
+    ])
+    extra["key"] = extra["activity"].map(paper_key)
+    paper = pd.concat([paper, extra], ignore_index=True)
+    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
+    text = "\n".join(findings(df, paper, labels=LABELS))
+    assert "every row" not in text
+    assert "PM has a lower error than every other method in 2 of the 3 (activity, $N$) rows" in text
+    assert "in 2 of the 2 (activity, $N$) rows" in "\n".join(findings(df, _paper(), labels=LABELS))
+    assert "paper's Tables" not in "\n".join(findings(df, None, labels=LABELS))
+
+
 def test_ratio_to_the_paper_and_coverage_are_given_per_source():
     rows = _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]})
     mocap = [dict(r, source="mocap", error=r["error"] / 4) for r in rows]
