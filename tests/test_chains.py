@@ -162,6 +162,29 @@ def test_sentences_count_the_cells_where_a_variant_beats_1nn():
     assert "three quarters of their cells: PMK16." in text
 
 
+def test_pm_against_the_paper_is_like_for_like_or_not_at_all():
+    """Before: contiguous-protocol errors were set against the paper's random-frame numbers, with medians over
+    hsc and mocap together."""
+    df = _aggregate()  # contiguous only
+    text = " ".join(conv.why_pm_sentences(df, _paper(), variants=["PM", "PMK16"], labels={}))
+    assert "against the paper's 8.24" not in text
+    assert ("The paper's numbers are for random frames; this study ran only the contiguous protocol, so PM is not "
+            "compared with the paper's PM like for like.") in text
+    rnd = df.copy()
+    rnd["protocol"] = "random"
+    rnd.loc[rnd["method"] == "PM", "error"] += 10  # contiguous PM stays at ~9-10: must not enter the medians
+    mocap = rnd.copy()
+    mocap["source"] = "mocap"
+    mocap["error"] /= 4
+    both = pd.concat([df, rnd, mocap], ignore_index=True)
+    text = " ".join(conv.why_pm_sentences(both, _paper(), variants=["PM", "PMK16"], labels={}))
+    assert ("PM here against the paper's PM (random protocol, as in the paper; median over activities): "
+            "on the hsc data, $N=30$: 19.05 against the paper's 8.24; $N=100$: 20.05 against the paper's 3.93; "
+            "on the mocap data, $N=30$: 4.76 against the paper's 8.24; $N=100$: 5.01 against the paper's 3.93 "
+            "degrees.") in text
+    assert "like for like" not in text
+
+
 def test_trace_figure_overlays_chains_and_has_no_empty_panel():
     rng = np.random.default_rng(0)
     arrays = {
