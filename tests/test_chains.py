@@ -1,6 +1,7 @@
 """Several MCMC chains per split: chain seeds, pooling of the chains' predictions, R-hat and ESS across
 chains, and the convergence tables, ablation table, sentences and trace figures drawn from the aggregate."""
 
+import json
 import math
 
 import matplotlib.pyplot as plt
@@ -183,6 +184,24 @@ def test_pm_against_the_paper_is_like_for_like_or_not_at_all():
             "on the mocap data, $N=30$: 4.76 against the paper's 8.24; $N=100$: 5.01 against the paper's 3.93 "
             "degrees.") in text
     assert "like for like" not in text
+
+
+def test_gxy_caption_describes_the_panels_drawn():
+    """Before: the caption was fixed text naming three panels (K >= N, K < N, a proper Gamma prior) although the
+    CI ablation draws two (PM, PMK16)."""
+    rows = [{"protocol": "contiguous", "method": m, "n_train": 30, "params": json.dumps(p)}
+            for m, p in (("PM", {"n_atoms": 64}), ("PMK16", {"n_atoms": 16}),
+                         ("PMgxy", {"n_atoms": 64, "a_xy": 1.0, "b_xy": 2.0}))]
+    df = pd.DataFrame(rows)
+    two = conv.gxy_caption(df, ["PM", "PMK16"], protocol="contiguous", n_train=30, labels={"PMK16": "PM K=16"})
+    assert "Gamma" not in two and "the 2 methods" in two
+    assert ("PM: $K = 64 \\geq N = 30$ (a code set can interpolate the training pairs); "
+            "PM K=16: $K = 16 < N = 30$.") in two
+    three = conv.gxy_caption(df, ["PM", "PMK16", "PMgxy"], protocol="contiguous", n_train=30, labels={})
+    assert "the 3 methods" in three
+    assert ("PMgxy: $K = 64 \\geq N = 30$ (a code set can interpolate the training pairs), "
+            "with a proper Gamma(1, 2)") in three
+    assert conv.gxy_panel({"n_atoms": 16}, 30) == (16, "<", None)
 
 
 def test_trace_figure_overlays_chains_and_has_no_empty_panel():

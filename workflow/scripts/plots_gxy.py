@@ -1,4 +1,4 @@
-"""Snakemake adapter of rule plot_gxy: g_xy traces of the mechanism figure (K >= N, K < N, proper prior)."""
+"""Snakemake adapter of rule plot_gxy: g_xy traces, one panel per method of report.gxy_methods."""
 
 import json
 import sys
@@ -8,7 +8,7 @@ import numpy as np
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
-from bsrbench.reporting.convergence import plot_gxy  # noqa: E402
+from bsrbench.reporting.convergence import gxy_panel, plot_gxy  # noqa: E402
 from bsrbench.reporting.plots import save  # noqa: E402
 from bsrbench.reporting.tables import read_results  # noqa: E402
 
@@ -22,11 +22,10 @@ for p in sm.input.predictions:
     row = df[(df["protocol"] == protocol) & (df["source"] == source) & (df["activity"] == activity)
              & (df["method"] == method) & (df["n_train"] == int(n[1:])) & (df["seed"] == int(seed[4:]))]
     params = json.loads(row["params"].iloc[0]) if len(row) else {}
-    k = params.get("n_atoms", "?")
-    rel = "≥" if isinstance(k, int) and k >= int(n[1:]) else "<"
+    k, rel, prior = gxy_panel(params, int(n[1:]))
     title = f"{labels.get(method, method)}: K={k} {rel} N={n[1:]}"
-    if params.get("a_xy") is not None:
-        title += f"\nGamma({params['a_xy']:g}, {params.get('b_xy', params.get('b0', 1e-6)):g}) prior"
+    if prior is not None:
+        title += f"\nGamma({prior[0]:g}, {prior[1]:g}) prior"
     with np.load(path) as f:
         items.append((title, {key: f[key] for key in f.files}))
 save(plot_gxy(items), [sm.output.pdf, sm.output.png])

@@ -9,6 +9,7 @@ Rows of one-chain methods have NaN there. The ablation runs PM variants as metho
 (``config/ablation.yaml``); the variants of a study are the methods with the estimator of the trace method.
 """
 
+import json
 import math
 
 import numpy as np
@@ -403,6 +404,46 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
     fig.suptitle(title + suffix)
     fig.tight_layout()
     return fig
+
+
+def gxy_panel(params, n_train):
+    """What one panel of the g_xy figure shows: ``(K, "≥" or "<", prior)`` from a fit's ``params`` (dict) at
+    ``n_train`` training pairs; ``prior`` is ``(a_xy, b_xy)`` of a proper Gamma prior on g_xy, or None (the
+    paper's improper one)."""
+    k = params.get("n_atoms", "?")
+    rel = "≥" if isinstance(k, int) and k >= int(n_train) else "<"
+    prior = None
+    if params.get("a_xy") is not None:
+        prior = (float(params["a_xy"]), float(params.get("b_xy", params.get("b0", 1e-6))))
+    return k, rel, prior
+
+
+def gxy_caption(df, methods, *, protocol, n_train, labels):
+    """LaTeX caption of the g_xy figure, describing the panels drawn: one per method of ``methods``
+    (``report.gxy_methods``), with its K against ``n_train`` and its prior, read from the ``params`` of its rows in
+    the aggregate table ``df`` (protocol ``protocol``, ``n_train`` training pairs)."""
+    parts = []
+    for m in methods:
+        rows = df[(df["method"] == m) & (df["protocol"] == protocol) & (df["n_train"] == int(n_train))]
+        params = json.loads(rows["params"].iloc[0]) if len(rows) and isinstance(rows["params"].iloc[0], str) else {}
+        k, rel, prior = gxy_panel(params, n_train)
+        text = f"{latex_escape(labels.get(m, m))}: "
+        if k == "?":
+            text += "$K$ unknown"
+        else:
+            op = "\\geq" if rel == "≥" else "<"
+            text += f"$K = {k} {op} N = {int(n_train)}$"
+            if rel == "≥":
+                text += " (a code set can interpolate the training pairs)"
+        if prior is not None:
+            text += f", with a proper Gamma({prior[0]:g}, {prior[1]:g}) prior on $\\gamma_{{xy}}$"
+        parts.append(text)
+    what = f"the {len(parts)} methods" if len(parts) != 1 else "the method"
+    return (
+        "The noise precision $\\gamma_{xy}$ per chain (first activity, smallest $N$, first seed; log axis; "
+        f"shaded: burn-in) of {what} of \\texttt{{report.gxy\\_methods}}: " + "; ".join(parts)
+        + ". The panel titles repeat $K$ and $N$."
+    )
 
 
 def plot_gxy(items, *, n_burn_in=None):
