@@ -314,6 +314,22 @@ def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown)
     plt.close(fig)
 
 
+@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous")])
+def test_error_figure_legend_names_only_the_protocols_run(protocols):
+    """Before: the legend always had "this study (random)", also for a contiguous-only study."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import plot_error_vs_ntrain
+
+    rows = [dict(r, protocol=p) for p in protocols for r in _rows({("golf", "PM"): [8.0, 9.0]})]
+    fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
+    names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+    assert [n for n in names if n.startswith("this study")] == [f"this study ({p})" for p in
+                                                                  ("random", "contiguous") if p in protocols]
+    assert "PM" in names and "the paper" in names
+    plt.close(fig)
+
+
 def _error_axis_labels(lo, hi):
     """Fig. 1 for errors from about ``lo`` (N = 100) to ``hi`` (N = 30) degrees: (y limits, {value: label} of the
     labelled y ticks inside them), read from the drawn canvas (major and minor ticks)."""

@@ -139,7 +139,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
 
     Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
     dodged sideways), the paper's values at the studied sizes as open markers on dotted lines, the
-    contiguous protocol (if run) dashed. The legend is outside the panels.
+    contiguous protocol (if run) dashed. The legend is outside the panels and names only the protocols run.
     """
     from matplotlib.lines import Line2D
 
@@ -178,9 +178,9 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
                label=labels.get(m, m))
         for i, m in enumerate(methods)
     ]
-    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, label="this study (random)")]
-    if "contiguous" in protocols:
-        style.append(Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls="--", label="this study (contiguous)"))
+    # only the protocols in the data (a contiguous-only study has no "random" line to explain)
+    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls=ls, label=f"this study ({protocol})")
+             for protocol, ls in (("random", "-"), ("contiguous", "--")) if protocol in protocols]
     if shown_paper:
         style.append(Line2D([], [], color="0.3", marker="o", mfc="white", ms=4.5, lw=0.9, ls=":", label="the paper"))
     fig.legend(handles=handles + style, loc="outside right upper", frameon=False)
