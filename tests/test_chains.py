@@ -3,6 +3,7 @@ chains, and the convergence tables, ablation table, sentences and trace figures 
 
 import json
 import math
+import re
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -150,6 +151,8 @@ def test_ablation_table_bolds_the_best_and_shows_the_references():
     assert r"\textbf{5.55}" in sr_line and "(SR)" in sr_line  # SR is the best of each column
     assert not any(r"\textbf" in ln for ln in lines if ln.startswith("PMK16"))
     assert any(ln.startswith(r"\emph{paper's PM}") and "8.24" in ln and "3.93" in ln for ln in lines)
+    # the std prints smaller than the mean: one size below the table's \footnotesize (it was {\small ...})
+    assert "\\footnotesize" in tex and set(re.findall(r"\$\\pm\$ \{\\([a-z]+) ", tex)) == {"scriptsize"}
 
 
 def test_sentences_count_the_cells_where_a_variant_beats_1nn():

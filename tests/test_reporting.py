@@ -54,13 +54,23 @@ def _rows(errors):
 
 
 def test_format_cell_and_bold_best():
-    assert format_cell(12.3456, 1.234) == r"12.35 $\pm$ {\small 1.23}"
-    assert format_cell(12.3456, 1.234, bold=True) == r"\textbf{12.35} $\pm$ {\small 1.23}"
+    assert format_cell(12.3456, 1.234) == r"12.35 $\pm$ {\scriptsize 1.23}"
+    assert format_cell(12.3456, 1.234, bold=True) == r"\textbf{12.35} $\pm$ {\scriptsize 1.23}"
     assert format_cell(7.0, float("nan")) == "7.00"
     assert format_cell(float("nan"), 1.0) == "--"
     assert best_mask([3.0, 2.0, 5.0]) == [False, True, False]
     assert best_mask([2.001, 2.004, 5.0]) == [True, True, False]  # equal when printed: both bold
     assert best_mask([float("nan"), 1.0]) == [False, True]
+
+
+LATEX_SIZES = ["tiny", "scriptsize", "footnotesize", "small", "normalsize", "large"]
+
+
+def assert_std_smaller_than_the_table(text):
+    """Before: the std was set {\\small ...} inside \\footnotesize tables, so it printed larger than the mean."""
+    table = re.search(r"\\(" + "|".join(LATEX_SIZES) + r")\b", text).group(1)
+    stds = re.findall(r"\$\\pm\$ \{\\([a-z]+) ", text)
+    assert stds and all(LATEX_SIZES.index(s) < LATEX_SIZES.index(table) for s in stds), (table, set(stds))
 
 
 def test_aggregate_sorts_flattens_and_rejects_duplicates():
@@ -95,7 +105,8 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
     golf = [ln for ln in lines if ln.startswith("Golf & 30")]
     assert len(golf) == 1
     cells = golf[0][:-2].split(" & ")
-    assert cells[2] == r"13.00 $\pm$ {\small 1.41}"
+    assert cells[2] == r"13.00 $\pm$ {\scriptsize 1.41}"
+    assert_std_smaller_than_the_table(text)
     assert cells[4].startswith(r"\textbf{6.50}")  # the reference is best here: bold, PM not
     assert not cells[3].startswith(r"\textbf")
     paper = lines[lines.index(golf[0]) + 1]

@@ -231,8 +231,13 @@ def latex_escape(text):
     return "".join(repl.get(c, c) for c in str(text))
 
 
+STD_SIZE = "scriptsize"  # LaTeX size of the std in a table cell; the tables are \footnotesize
+
+
 def format_cell(mean, std, *, bold=False, digits=2):
-    """``mean $\\pm$ {\\small std}`` with the mean in bold if ``bold``; ``--`` for a missing mean."""
+    """``mean $\\pm$ {\\scriptsize std}`` with the mean in bold if ``bold``; ``--`` for a missing mean.
+
+    The std is set one size below the tables' ``\\footnotesize``, so it prints smaller than the mean."""
     if mean is None or not np.isfinite(mean):
         return "--"
     m = f"{mean:.{digits}f}"
@@ -240,7 +245,7 @@ def format_cell(mean, std, *, bold=False, digits=2):
         m = rf"\textbf{{{m}}}"
     if std is None or not np.isfinite(std):
         return m
-    return rf"{m} $\pm$ {{\small {std:.{digits}f}}}"
+    return rf"{m} $\pm$ {{\{STD_SIZE} {std:.{digits}f}}}"
 
 
 def best_mask(values, digits=2):
