@@ -224,6 +224,13 @@ def test_trace_figure_overlays_chains_and_has_no_empty_panel():
     assert titles[conv.TRACE_LABELS["g_xy"]].get_yscale() == "log"
     assert titles[conv.TRACE_LABELS["log_likelihood"]].get_yscale() == "linear"
     assert all(len(ax.get_lines()) >= 4 for ax in axes)  # one line per chain
+    # active atoms is a count: whole-number ticks even over a narrow range (it had 62.5)
+    atoms = conv.plot_chain_traces({"chain_trace_active_atoms": 62 + rng.integers(0, 2, size=(2, 60)).astype(float)},
+                                   title="atoms")
+    atoms.canvas.draw()
+    lo, hi = atoms.axes[0].get_ylim()
+    ticks = [v for v in atoms.axes[0].get_yticks() if lo <= v <= hi]
+    assert len(ticks) >= 2 and all(float(v).is_integer() for v in ticks), ticks
     one = conv.plot_chain_traces({"trace_g_xy": np.exp(rng.normal(size=50))}, title="one chain", n_burn_in=10)
     assert len([ax for ax in one.axes if ax.get_visible()]) == 1
 

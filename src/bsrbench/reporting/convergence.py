@@ -357,6 +357,7 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
     always moves, so its acceptance is 1 and gets no panel). Returns the figure.
     """
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     tr = chain_traces(arrays)
     if n_burn_in is None and "n_burn_in" in arrays:
@@ -389,6 +390,8 @@ def plot_chain_traces(arrays, *, title, n_burn_in=None):
                 ax.axvline(n_burn_in, color="0.3", ls="--", lw=0.8)
             if name in _PRECISIONS and np.all(a[np.isfinite(a)] > 0):
                 _log_axis(ax)
+            if name == "active_atoms":  # a count: whole-number ticks only (not 62.5)
+                ax.yaxis.set_major_locator(MaxNLocator(integer=True))
             ax.set_xlabel("Gibbs sweep")
             label = TRACE_LABELS.get(name, name.replace("_", " "))
             ax.set_title(label, fontsize=MATH_TITLE_PT if "$" in label else None)
