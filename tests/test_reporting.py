@@ -194,7 +194,10 @@ def test_findings_for_all_and_for_none():
     all_ok = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0], ("acrobatics", "PM"): [1.0],
                                    ("acrobatics", "RVM"): [2.0]}))
     text = "\n".join(findings(all_ok, None, labels=LABELS))
-    assert "than RVM for all 2 activities studied" in text
+    assert "than RVM for both activities studied" in text and "all 2" not in text
+    three = aggregate_rows(_rows({(a, m): [1.0 if m == "PM" else 2.0] for a in ("golf", "acrobatics", "navigate")
+                                  for m in ("PM", "RVM")}))
+    assert "than RVM for all 3 activities studied" in "\n".join(findings(three, None, labels=LABELS))
     # one activity: PM better reads "for the activity studied"; PM worse used to read the same (the sentence
     # said PM had the lower error when it had the higher one)
     better = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0]}))

@@ -49,13 +49,14 @@ def _each(names):
 
 def _for_how_many(ok):
     """How many activities a boolean Series (indexed by source, activity, paper activity) is true for, in words,
-    naming them: "for all 2 activities (A, B)", "for none of the 2 activities (A, B)",
+    naming them: "for both activities (A, B)", "for all 3 activities (A, B, C)", "for none of the 2 activities (A, B)",
     "for 1 of the 2 activities (A); not for B", and with one activity "for the activity studied (A)" or
     "for no activity: not for A, the only activity studied"."""
     n, k = len(ok), int(ok.sum())
     word = "activity" if n == 1 else "activities"
     if k == n:
-        return f"for {'the' if n == 1 else f'all {n}'} {word} studied ({_names(ok.index)})"
+        every = {1: "the", 2: "both"}.get(n, f"all {n}")
+        return f"for {every} {word} studied ({_names(ok.index)})"
     if k == 0 and n == 1:
         return f"for no activity: not for {_names(ok.index)}, the only activity studied"
     if k == 0:
