@@ -73,6 +73,12 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
     assert "PM" in header and "1-NN" in header and "Ridge" in header, header
     assert "K=16" not in header and "j=3" not in header, header
     assert "K=16" in tex and "j=3" in tex
+    # captions and sentences say what this study drew and ran: two g_xy panels (PM, PMK16), the contiguous
+    # protocol only (no comparison with the paper's random-frame PM; calibration on the contiguous protocol)
+    assert "the 2 methods of" in tex and "proper Gamma" not in tex, tex
+    assert "this study ran only the contiguous protocol" in tex and "against the paper's" not in tex
+    body = (ablation_run / "reports" / "ablation-ci" / "tables" / "body.tex").read_text()
+    assert "(contiguous protocol, as named in the panel titles; this study did not run the random one)" in body
     pdf = ablation_run / "reports" / "ablation-ci" / "report.pdf"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout

@@ -19,6 +19,14 @@ estimators = df.drop_duplicates("method")[["method", "estimator"]].itertuples(in
 defaults = {m: estimator_defaults(e) for m, e in estimators}
 
 
+# the calibration figure's protocol (plots.plot_calibration): the random one (the paper's) if run, else the first
+_protocols = sorted(set(df["protocol"]))
+calibration_protocol = (
+    "random protocol" if "random" in _protocols or not _protocols
+    else f"{_protocols[0]} protocol, as named in the panel titles; this study did not run the random one"
+)
+
+
 def caption(kind, source):
     """The caption of one figure (one per source and kind)."""
     if kind == "error_vs_ntrain":
@@ -57,8 +65,8 @@ def caption(kind, source):
         )
     if kind == "calibration":
         return (
-            f"Calibration on the {source} data (the random protocol; another, named in the panel titles, if the "
-            "study did not run it), one panel per $N$: the share of the test angles "
+            f"Calibration on the {source} data ({calibration_protocol}), one panel per $N$: the share of the "
+            "test angles "
             "inside the central predictive interval against the interval's nominal level, for the methods "
             "with predictive intervals; line: mean over seeds, band: minimum to maximum. A calibrated method "
             "follows the dashed diagonal."
