@@ -79,6 +79,7 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
     assert "this study ran only the contiguous protocol" in tex and "against the paper's" not in tex
     body = (ablation_run / "reports" / "ablation-ci" / "tables" / "body.tex").read_text()
     assert "(contiguous protocol, as named in the panel titles; this study did not run the random one)" in body
+    assert "Filled markers: this study (dashed lines: contiguous protocol)" in body and "solid lines" not in body
     pdf = ablation_run / "reports" / "ablation-ci" / "report.pdf"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout

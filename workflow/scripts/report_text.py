@@ -25,6 +25,9 @@ calibration_protocol = (
     "random protocol" if "random" in _protocols or not _protocols
     else f"{_protocols[0]} protocol, as named in the panel titles; this study did not run the random one"
 )
+# Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one
+study_lines = "; ".join(f"{ls} lines: {p} protocol" for p, ls in (("random", "solid"), ("contiguous", "dashed"))
+                        if p in _protocols)
 
 
 def caption(kind, source):
@@ -33,7 +36,7 @@ def caption(kind, source):
         return (
             f"Error against the number of training frames $N$ on the {source} data, one panel per activity "
             "(log-log axes, ticks at the sizes studied): mean $\\pm$ std over seeds, methods dodged sideways so "
-            "that their error bars do not overlap. Filled markers, solid lines: this study; open markers, "
+            f"that their error bars do not overlap. Filled markers: this study ({study_lines}); open markers, "
             "dotted lines: the paper's Tables I and II at the same $N$."
         )
     kinds = dict(sm.params.stick_kinds).get(source, [])
