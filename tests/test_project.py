@@ -114,3 +114,24 @@ def test_bin_scripts_stop_early_in_a_clone_path_with_white_space(tmp_path, scrip
                      r"Snakemake would run .* unquoted .*snakemake/snakemake#2645.*Clone or move bsrbench to a path "
                      r"without white space", proc.stderr), proc.stderr
     assert sorted(p.name for p in clone.iterdir()) == ["bin"]  # no .venv, nothing else
+
+
+@pytest.mark.parametrize(
+    "args, dry",
+    [
+        (["-n"], True), (["--dry-run"], True), (["--dryrun"], True), (["-np"], True), (["-pn"], True),
+        (["--configfile", "config/paper.yaml", "-n"], True), (["--cores", "2", "-Fn"], True),
+        ([], False), (["-p"], False), (["--configfile", "config/paper.yaml"], False), (["--notemp"], False),
+        (["--nolock", "--config", "n_train=[30]"], False), (["-j2"], False),
+    ],
+)
+def test_bin_study_dry_run_writes_no_report(args, dry):
+    """`bin/study -n` ran Snakemake's dry run and then `snakemake --summary` and `--report` for real. bin/study now
+    stops after the dry run when its arguments ask for one (-n, --dry-run, --dryrun, -n in combined short flags);
+    BSRBENCH_STUDY_PLAN=1 makes it print that decision (made by the same shell function) and exit."""
+    env = dict(os.environ, BSRBENCH_STUDY_PLAN="1")
+    proc = subprocess.run(["bash", str(ROOT / "bin" / "study"), *args], capture_output=True, text=True, env=env,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("dry run:" if dry else "run:"), proc.stdout
+    assert ("no reports" in proc.stdout) == dry
