@@ -5,6 +5,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -135,3 +136,22 @@ def test_bin_study_dry_run_writes_no_report(args, dry):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("dry run:" if dry else "run:"), proc.stdout
     assert ("no reports" in proc.stdout) == dry
+
+
+def test_bench_bsr_ab_help_and_a_malformed_size():
+    """benchmarks/bench_bsr_ab.py showed only its docstring's first line in --help, options without help, and
+    `--sizes 30-64` ended in a ValueError traceback; now --help shows the whole docstring and every option's
+    default, and a malformed cell is argparse's one-line error."""
+    script = ROOT / "benchmarks" / "bench_bsr_ab.py"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    help_ = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, env=env,
+                           timeout=300)
+    assert help_.returncode == 0, help_.stderr
+    assert "its own Generator with the same seed" in help_.stdout  # a line from the middle of the docstring
+    for option, default in [("--sizes", "30x64 30x128"), ("--w-update", "ess"), ("--atom-update", "block"),
+                            ("--batches", "15"), ("--per-batch", "10")]:
+        assert re.search(rf"{option}.*?\(default:\s+{default}", help_.stdout, re.S), (option, help_.stdout)
+    bad = subprocess.run([sys.executable, str(script), "HEAD", "--sizes", "30-64"], capture_output=True, text=True,
+                         env=env, timeout=300)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr, bad.stderr
+    assert "error: argument --sizes: '30-64': expected NxK, e.g. 30x64" in bad.stderr, bad.stderr
