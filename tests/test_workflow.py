@@ -4,6 +4,7 @@ working tree (studies kept apart, the job server gone after the run, the report 
 
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -118,6 +119,30 @@ def test_schema_error_is_one_line_naming_the_key(override, message):
     assert res.returncode != 0
     assert len(out.splitlines()) < 30, out[-3000:]
     assert any(re.search(message, line) for line in out.splitlines()), out[-3000:]
+
+
+def _readme_override_examples():
+    text = (ROOT / "README.md").read_text()
+    return [line for line in text.splitlines() if line.startswith("snakemake --cores 2 --config ")]
+
+
+@pytest.mark.parametrize("line", _readme_override_examples())
+def test_readme_override_examples_run_in_a_study_of_their_own(line):
+    """The README's `--config` examples wrote into the default study's results/quick and reports/quick, and the
+    `methods='{Ridge: {grid: ...}}'` one changed nothing (the default study has cv.mode none, which ignores grids).
+    Each example now names its study, its dry run passes and writes only there, and a grid example runs CV jobs of
+    that method."""
+    args = shlex.split(line)[1:]
+    studies = [a.split("=", 1)[1] for a in args if a.startswith("study=")]
+    assert studies and studies[0] != "quick", f"the example does not name a study of its own: {line}"
+    study = studies[0]
+    res = smk("-n", *args)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    assert "results/quick/" not in out and "reports/quick/" not in out
+    assert f"results/{study}/aggregate/results.csv" in out
+    for method in re.findall(r"methods='\{(\w+): \{grid:", line):
+        assert re.search(rf"output: results/{re.escape(study)}/cv/\S+/{method}/n\d+/seed\d+\.json", out), out[-3000:]
 
 
 @pytest.mark.parametrize("how", ["configfile", "config"])
