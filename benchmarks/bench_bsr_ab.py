@@ -10,8 +10,8 @@ its own Generator with the same seed, so load and drift hit both alike.
 The old revision's package is extracted with ``git archive <rev> src/bsrbench`` into a temporary folder and
 imported under another name, so both numba kernels live side by side (their caches are keyed by file path).
 Run from the repository root:
-    python benchmarks/bench_bsr_ab.py b54c7e1                 # the commit before issue 12's blocked code update
-    python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
+    .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1        # the commit before issue 12's blocked code update
+    .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
 """
 
 import os
@@ -71,14 +71,36 @@ def interleaved(fa, fb, batches, per_batch):
     return float(np.median(ta)), float(np.median(tb))
 
 
+def size_cell(text):
+    """(N, K) of an ``NxK`` cell such as ``30x64`` (argparse type): ArgumentTypeError otherwise."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) > 0 for p in parts):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NxK, e.g. 30x64 (N training frames, K atoms)")
+    return int(parts[0]), int(parts[1])
+
+
+def positive_int(text):
+    """A positive integer (argparse type): ArgumentTypeError otherwise."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive integer")
+    return int(text)
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("rev", help="the older git revision (e.g. a commit before a kernel change)")
-    ap.add_argument("--sizes", nargs="+", default=DEFAULT_SIZES, help="NxK cells (default: %(default)s)")
-    ap.add_argument("--w-update", default="ess", choices=("ess", "mh"))
-    ap.add_argument("--atom-update", default="block", choices=("block", "single"))
-    ap.add_argument("--batches", type=int, default=15)
-    ap.add_argument("--per-batch", type=int, default=10)
+    ap.add_argument("--sizes", nargs="+", type=size_cell, default=[size_cell(c) for c in DEFAULT_SIZES],
+                    metavar="NxK",
+                    help=f"cells to time, N training frames x K atoms (default: {' '.join(DEFAULT_SIZES)})")
+    ap.add_argument("--w-update", default="ess", choices=("ess", "mh"),
+                    help="update of the logits: elliptical slice sampling or Metropolis-Hastings "
+                         "(default: %(default)s)")
+    ap.add_argument("--atom-update", default="block", choices=("block", "single"),
+                    help="dictionary update: all atoms jointly or one at a time (default: %(default)s)")
+    ap.add_argument("--batches", type=positive_int, default=15,
+                    help="alternating batches per kernel; the medians are over them (default: %(default)s)")
+    ap.add_argument("--per-batch", type=positive_int, default=10,
+                    help="Gibbs sweeps per batch (default: %(default)s)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         old = old_kernels(args.rev, tmp)
@@ -86,8 +108,7 @@ def main(argv=None):
               f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
               f"load average at the start {os.getloadavg()[0]:.1f}\n")
         print(f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|")
-        for cell in args.sizes:
-            N, K = (int(v) for v in cell.lower().split("x"))
+        for N, K in args.sizes:
             state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
             fo = sweeper(old, state, data, hyper, args.w_update, args.atom_update)
             fn = sweeper(new, state, data, hyper, args.w_update, args.atom_update)

@@ -88,7 +88,7 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
 
 def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_path):
     agg = ablation_run / "results" / "ablation-ci" / "aggregate" / "results.csv"
-    dest = tmp_path / "published" / "ablation.csv"
+    dest = tmp_path / "published" / "ablation-ci.csv"  # named after the study (publish checks)
     dest.parent.mkdir()  # publish writes into an existing folder only
     assert published_main(["publish", str(agg), str(dest)]) == 0
     pub = pd.read_csv(dest)

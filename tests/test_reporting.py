@@ -480,7 +480,7 @@ def _files(tmp_path):
         (["readme", "{published}", "--paper", "{paper-value}"],
          r"paper-value\.csv: row 2, column 'mean_deg': 'abc'; expected a finite number >= 0"),
         (["readme", "{published}", "--protocol", "sideways"], r"no rows of protocol 'sideways'"),
-        (["publish", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
+        (["publish", "--study", "out", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
         (["publish", "{published}", "{binary}/out.csv"], r"binary\.csv/out\.csv: cannot write the published table"),
         (["publish", "{published}", "{tmp}/nope/out.csv"],
          r"nope/out\.csv: cannot write the published table: its folder '.*/nope' does not exist; expected the path "
@@ -505,3 +505,39 @@ def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsy
     assert re.search(message, err), err
     assert {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
     assert not (tmp_path / "nope").exists()  # publish to a missing folder creates nothing (it used to create it)
+
+
+def test_publish_refuses_another_studys_table(tmp_path, capsys):
+    """Before: `publish results/quick/aggregate/results.csv reports/published/paper.csv` silently replaced the
+    committed paper-protocol table with the quick study's results. Now the destination must be named after the study
+    (the folder of results/<study>/aggregate/results.csv, or --study for a source outside results/): exit 2, one line
+    naming both studies and the right command, the destination unchanged; the right command then works."""
+    from bsrbench.reporting.published import main
+
+    src = tmp_path / "results" / "quick" / "aggregate" / "results.csv"
+    src.parent.mkdir(parents=True)
+    src.write_bytes(PUBLISHED.read_bytes())
+    dest = tmp_path / "reports" / "published" / "paper.csv"
+    dest.parent.mkdir(parents=True)
+    dest.write_text("the committed paper table\n")
+
+    def fails(argv, *needles):
+        assert main([str(a) for a in argv]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1, err
+        for needle in needles:
+            assert needle in err, (needle, err)
+        assert dest.read_text() == "the committed paper table\n"
+        assert not dest.with_name("quick.csv").exists()
+
+    fails(["publish", src, dest], "study 'quick'", "is study 'paper'",
+          f"The right command: python -m bsrbench.reporting.published publish {src} {dest.with_name('quick.csv')}")
+    fails(["publish", "--study", "paper", src, dest], "--study 'paper' contradicts", "study 'quick'")
+    outside = tmp_path / "elsewhere.csv"
+    outside.write_bytes(PUBLISHED.read_bytes())
+    fails(["publish", outside, dest], "cannot tell the study", "--study NAME")
+    fails(["publish", "--study", "quick", outside, dest], "is study 'paper'", f"--study quick {outside}")
+
+    assert main(["publish", str(src), str(dest.with_name("quick.csv"))]) == 0
+    assert main(["publish", "--study", "paper", str(outside), str(dest)]) == 0
+    assert dest.read_bytes() == dest.with_name("quick.csv").read_bytes() != b"the committed paper table\n"

@@ -4,6 +4,7 @@ working tree (studies kept apart, the job server gone after the run, the report 
 
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -78,7 +79,8 @@ def test_dry_run(args):
         ("methods: {PM: {params: {thin: 200}}}", r"thin=200 retains no sweep of the n_iter - n_burn_in = 100"),
         ("cv: {mode: per_size, folds: 40}", r"'cv\.folds': 40 folds of the smallest n_train N = 30 .*empty folds"),
         # reports/published holds the committed tables; reports/{study} is a study's report folder
-        ("study: published", r"'published' should not be valid under \{'enum'"),
+        ("study: published", r"configuration: key 'study', value 'published': not allowed here; .*Not the name of a "
+                             r"shared folder or file \(features, mocap, benchmarks, published, report\.tex\)"),
     ],
 )
 def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_path):
@@ -87,6 +89,60 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
     res = smk("-n", "--cores", "1", "--configfile", str(bad))
     assert res.returncode != 0
     assert re.search(message, res.stdout + res.stderr), res.stdout[-2000:] + res.stderr[-2000:]
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("n_trian=[30]", r"^configuration: unknown key 'n_trian' \(value \[30\]\): Additional properties are not "
+                         r"allowed \('n_trian' was unexpected\); expected one of the keys \[.*'n_train'"),
+        ("protocols=[random, blocks]", r"^configuration: key 'protocols\[1\]', value 'blocks': not one of the allowed "
+                                       r"values; expected one of \['random', 'contiguous', 'cross_trial'\]$"),
+        ("methods={PM: {parms: {n_atoms: 8}}}", r"^configuration: unknown key 'methods\.PM\.parms' \(value "
+                                                r"\{'n_atoms': 8\}\): .*expected one of the keys \[.*'params'"),
+        ("n_seeds=0", r"^configuration: key 'n_seeds', value 0: 0 is less than the minimum of 1; expected minimum: 1 "
+                      r"\(Repetitions"),
+        ("datasets={hsc: {golf: {fromat: mat}}}", r"^data sets \(config/datasets\.yaml\): unknown key "
+                                                  r"'datasets\.hsc\.golf\.fromat' \(value 'mat'\): .*'format'"),
+        ("datasets={hsc: {Golf2: {format: mat, files: [x]}}}",
+         r"^data sets \(config/datasets\.yaml\): a name under key 'datasets\.hsc', value 'Golf2': 'Golf2' does not "
+         r"match '\^\[a-z0-9_\]\+\$'"),
+    ],
+    ids=["typo", "enum", "nested-typo", "minimum", "datasets-typo", "datasets-name"],
+)
+def test_schema_error_is_one_line_naming_the_key(override, message):
+    """`snakemake -n --config n_trian='[30]'` printed 966 lines (Snakemake's validation error dumps the schema and
+    the configuration) around the one useful line. Now one line names the key path, the value and what was
+    expected, and the whole output is a few lines."""
+    res = smk("-n", "--cores", "1", "--config", override)
+    out = res.stdout + res.stderr
+    assert res.returncode != 0
+    assert len(out.splitlines()) < 30, out[-3000:]
+    assert any(re.search(message, line) for line in out.splitlines()), out[-3000:]
+
+
+def _readme_override_examples():
+    text = (ROOT / "README.md").read_text()
+    return [line for line in text.splitlines() if line.startswith("snakemake --cores 2 --config ")]
+
+
+@pytest.mark.parametrize("line", _readme_override_examples())
+def test_readme_override_examples_run_in_a_study_of_their_own(line):
+    """The README's `--config` examples wrote into the default study's results/quick and reports/quick, and the
+    `methods='{Ridge: {grid: ...}}'` one changed nothing (the default study has cv.mode none, which ignores grids).
+    Each example now names its study, its dry run passes and writes only there, and a grid example runs CV jobs of
+    that method."""
+    args = shlex.split(line)[1:]
+    studies = [a.split("=", 1)[1] for a in args if a.startswith("study=")]
+    assert studies and studies[0] != "quick", f"the example does not name a study of its own: {line}"
+    study = studies[0]
+    res = smk("-n", *args)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    assert "results/quick/" not in out and "reports/quick/" not in out
+    assert f"results/{study}/aggregate/results.csv" in out
+    for method in re.findall(r"methods='\{(\w+): \{grid:", line):
+        assert re.search(rf"output: results/{re.escape(study)}/cv/\S+/{method}/n\d+/seed\d+\.json", out), out[-3000:]
 
 
 @pytest.mark.parametrize("how", ["configfile", "config"])

@@ -166,3 +166,56 @@ def retype_yaml_numbers(config, schema):
 
     walk(config, schema, "")
     return changed
+
+
+def _key_path(parts):
+    """'methods.PM.params' / 'protocols[0]' from a jsonschema path."""
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _short(value, limit=80):
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def schema_error_message(error, what="configuration"):
+    """One line for a jsonschema ``ValidationError`` of the configuration: the key path, the offending value and what
+    was expected (the allowed keys of a misspelled key, the allowed values of an enum, the key's schema
+    description for a forbidden value), instead of Snakemake's dump of the whole schema and configuration.
+
+    ``what`` names the configuration checked (e.g. ``'config/datasets.yaml'``)."""
+    parts = list(error.absolute_path)
+    schema = error.schema if isinstance(error.schema, dict) else {}
+    validator, expected_value = error.validator, error.validator_value
+    if validator == "additionalProperties" and isinstance(error.instance, dict):
+        known = set(schema.get("properties") or {})
+        patterns = [re.compile(p) for p in schema.get("patternProperties") or {}]
+        extra = [k for k in error.instance if k not in known and not any(p.search(str(k)) for p in patterns)]
+        if extra and known:
+            key = _key_path([*parts, extra[0]])
+            return (f"{what}: unknown key {key!r} (value {_short(error.instance[extra[0]])}): {error.message}; "
+                    f"expected one of the keys {sorted(known)}")
+    where = f"key {_key_path(parts)!r}" if parts else "top level"
+    if "propertyNames" in error.schema_path:
+        where = f"a name under {where}"
+    head = f"{what}: {where}, value {_short(error.instance)}: "
+    if validator == "enum":
+        return head + f"not one of the allowed values; expected one of {list(expected_value)}"
+    if validator == "not" and schema.get("description"):
+        return head + f"not allowed here; {schema['description']}"
+    desc = f" ({schema['description']})" if schema.get("description") else ""
+    return head + f"{error.message}; expected {validator}: {_short(expected_value)}{desc}"
+
+
+def config_validation_error(exc, what="configuration"):
+    """The InputError (:func:`schema_error_message`) for Snakemake's ``WorkflowError`` of ``snakemake.utils.validate``
+    (raised while handling jsonschema's ``ValidationError``, its ``__context__``); ``exc`` itself if it has none."""
+    from jsonschema.exceptions import ValidationError
+
+    cause = exc.__cause__ or exc.__context__
+    if isinstance(cause, ValidationError):
+        return InputError(schema_error_message(cause, what))
+    return exc

@@ -5,10 +5,18 @@ import os
 import sys
 from pathlib import Path
 
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
+from bsrbench.cli_config import config_validation_error
 
-validate(config, "../schemas/config.schema.yaml")
+
+# a schema error as one line naming the key, its value and what was expected (bsrbench.cli_config), instead of
+# Snakemake's message dumping the whole schema and configuration
+try:
+    validate(config, "../schemas/config.schema.yaml")
+except WorkflowError as exc:
+    raise config_validation_error(exc, "configuration") from None
 
 #: Root of this study's results: every rule writes its fit, CV, aggregate and benchmark files under it (the
 #: features and poses of results/features and results/mocap do not depend on the study and are shared).

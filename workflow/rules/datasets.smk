@@ -4,11 +4,19 @@ import re
 from pathlib import Path
 
 import yaml
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
+
+from bsrbench.cli_config import config_validation_error
 
 from bsrbench.errors import InputError
 
-validate(config, "../schemas/datasets.schema.yaml")
+# a schema error as one line naming the key, its value and what was expected (bsrbench.cli_config), instead of
+# Snakemake's message dumping the whole schema and configuration
+try:
+    validate(config, "../schemas/datasets.schema.yaml")
+except WorkflowError as exc:
+    raise config_validation_error(exc, "data sets (config/datasets.yaml)") from None
 
 _DATASETS_SCHEMA = yaml.safe_load(
     (Path(str(workflow.current_basedir)).parent / "schemas" / "datasets.schema.yaml").read_text()

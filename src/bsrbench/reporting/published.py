@@ -8,7 +8,14 @@ so that anyone can regenerate and check the README's tables without rerunning th
     python -m bsrbench.reporting.published publish results/paper/aggregate/results.csv reports/published/paper.csv
     python -m bsrbench.reporting.published readme reports/published/paper.csv --update README.md
 
-``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it.
+``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it, and that
+it is the table of the study the destination is named after: the study is the folder ``<study>`` of
+``results/<study>/aggregate/results.csv`` and the destination must be ``<study>.csv``
+(``reports/published/<study>.csv``), so that another study's results (e.g. the quick default study's) cannot silently replace ``paper.csv``. For a source
+outside ``results/`` name the study with ``--study NAME``::
+
+    python -m bsrbench.reporting.published publish --study paper /elsewhere/results.csv reports/published/paper.csv
+
 ``readme`` prints the markdown tables (one per data source, random protocol: mean +- std over seeds, the paper's
 number in brackets, the lowest mean of each row in bold) or, with ``--update``, replaces the text between the
 markers ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README.
@@ -33,12 +40,52 @@ README_LABELS = {"NN1": "1-NN"}
 _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tables.csv"
 
 
-def publish(src, dest):
+def study_of(src):
+    """The study of an aggregate table: ``<study>`` of a path ending in ``results/<study>/aggregate/results.csv``,
+    else None."""
+    parts = Path(src).parts
+    if len(parts) >= 4 and parts[-4] == "results" and parts[-2:] == ("aggregate", "results.csv"):
+        return parts[-3]
+    return None
+
+
+def check_study(src, dest, study=None):
+    """The study being published (see the module docstring); InputError naming ``src``, ``dest``, both studies and
+    the right command if the destination is not ``<study>.csv``, or if the study of ``src`` cannot be told from its
+    path and ``study`` is not given, or if ``study`` contradicts the path."""
+    cmd = "python -m bsrbench.reporting.published publish"
+    found = study_of(src)
+    if study is not None and found is not None and study != found:
+        raise InputError(
+            f"--study {study!r} contradicts the source {str(src)!r}, which is study {found!r} "
+            f"(results/<study>/aggregate/results.csv); drop --study: {cmd} {src} reports/published/{found}.csv"
+        )
+    study = study if study is not None else found
+    if study is None:
+        raise InputError(
+            f"cannot tell the study of the source {str(src)!r}: expected results/<study>/aggregate/results.csv, or "
+            f"name the study with --study NAME (the destination is then reports/published/NAME.csv)"
+        )
+    dest_study = Path(dest).name[:-4] if Path(dest).name.endswith(".csv") else Path(dest).name
+    if dest_study != study:
+        right = Path(dest).with_name(f"{study}.csv")
+        flag = "" if found is not None else f"--study {study} "
+        raise InputError(
+            f"the source {str(src)!r} is study {study!r} but the destination {str(dest)!r} is study "
+            f"{dest_study!r} (reports/published/<study>.csv); not publishing. The right command: "
+            f"{cmd} {flag}{src} {right}"
+        )
+    return study
+
+
+def publish(src, dest, study=None):
     """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first
     (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds).
 
     ``dest``'s folder must exist (a mistyped destination is an error, not a new folder): DataFileError naming
-    ``dest`` otherwise, before anything is read or written."""
+    ``dest`` otherwise, before anything is read or written. ``dest`` must be named after the study of ``src``
+    (:func:`check_study`; ``study`` for a source outside ``results/``): InputError otherwise, before anything is
+    read or written."""
     parent = Path(dest).parent
     if not parent.is_dir():
         what = "is not a folder" if parent.exists() else "does not exist"
@@ -46,6 +93,7 @@ def publish(src, dest):
             dest, f"cannot write the published table: its folder {str(parent)!r} {what}; expected the path of a "
             f"table in an existing folder, e.g. reports/published/paper.csv"
         )
+    check_study(src, dest, study)
     df = read_results(src)
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
     try:
@@ -124,9 +172,11 @@ def update_readme(path, tables):
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m bsrbench.reporting.published", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("publish", help="copy an aggregate table to reports/published/ (checked)")
-    p.add_argument("src")
-    p.add_argument("dest")
+    p = sub.add_parser("publish", help="copy an aggregate table to reports/published/<study>.csv (checked)")
+    p.add_argument("src", help="results/<study>/aggregate/results.csv")
+    p.add_argument("dest", help="reports/published/<study>.csv (named after the study of src)")
+    p.add_argument("--study", help="the study of a src outside results/ (default: <study> of "
+                   "results/<study>/aggregate/results.csv)")
     r = sub.add_parser("readme", help="the README's results tables from a published table")
     r.add_argument("table")
     r.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables (resources/paper-tables.csv)")
@@ -135,7 +185,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     try:
         if args.cmd == "publish":
-            df = publish(args.src, args.dest)
+            df = publish(args.src, args.dest, study=args.study)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
             return 0
         tables = readme_tables(read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol)
