@@ -255,6 +255,28 @@ def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     assert missing_data_note("hsc", {pa: "x" for t in PAPER_TABLES.values() for pa in t}) == ""
 
 
+def test_page_one_names_the_config_overrides_after_the_files():
+    """Before: the header listed the configuration files only, so a study run with `--config n_train=[30,60]`
+    claimed the files' N. Now the overrides follow the files, as a shell takes them (quoted where the shell
+    needs it), in typewriter type with ASCII hyphens and upright quotes."""
+    from bsrbench.reporting.report import build_header, config_provenance
+
+    files = ["config/datasets.yaml", "config/config.yaml", "config/ci.yaml"]
+    text = config_provenance(files, ["study=ci_n", "n_train=[30,60]", "report={subjective_methods: [SR]}"])
+    assert text.startswith(r"config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply), then ")
+    q = r"\textquotesingle{}"
+    assert text.endswith(
+        r"\texttt{-{}-{}config study=ci\_n " + q + "n\\_train=[30,60]" + q + " " + q
+        + r"report=\{subjective\_methods: [SR]\}" + q + "}"
+    ), text
+    assert config_provenance(files, []) == config_provenance(files) == (
+        "config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply)")
+    assert config_provenance([], ["job_server=False"]) == r"none, then \texttt{-{}-{}config job\_server=False}"
+    header = build_header(configfiles=files, overrides=["n_train=[30,60]"])
+    row = [ln for ln in header.splitlines() if ln.startswith("Configuration & ")]
+    assert len(row) == 1 and "n\\_train=[30,60]" in row[0]
+
+
 def test_parameters_table_lists_configured_cv_chosen_and_default_values():
     rows = _rows({("golf", "PM"): [8.0, 9.0]})
     rows[0]["params"], rows[1]["params"] = {"a": 1, "k": 64}, {"a": 1, "k": 128}

@@ -430,6 +430,23 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
     assert "study_activities.hsc" in text
 
 
+def test_ci_report_names_the_config_overrides_it_ran_with(ci_run, tmp_path):
+    """Before: page 1 named the configuration files but not the `--config` overrides. In a copy of the ci run (so
+    that the other tests see its report as built), overrides that change no job's result rebuild the PDF only,
+    and page 1 lists them after the files, copyable as typed."""
+    work = tmp_path / "work"
+    shutil.copytree(ci_run, work, symlinks=True)
+    res = smk("reports/ci/report.pdf", "--cores", "1", "--configfile", "config/ci.yaml",
+              "--config", "job_server=false", "n_train=[30]", cwd=work)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    assert set(re.findall(r"^localrule (\w+):", out, re.M)) == {"report_pdf"}, out[-3000:]
+    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", str(work / "reports" / "ci" / "report.pdf"), "-"],
+                           capture_output=True, text=True).stdout
+    flat = " ".join(page1.split())
+    assert "config/ci.yaml (in the order they apply), then --config job_server=false 'n_train=[30]'" in flat, flat
+
+
 def test_ci_rerun_is_a_no_op(ci_run):
     res = smk("reports/ci/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]

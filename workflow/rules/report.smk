@@ -233,6 +233,8 @@ rule report_pdf:
                 *workflow.overwrite_configfiles,
             ]
         ],
+        # and the --config KEY=VALUE overrides (command line or profile), which apply after them
+        overrides=list(workflow.config_settings.config_args or []),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

@@ -448,9 +448,30 @@ def write_body(path, *, tables, figures, notes=None):
         tmp.write_text("\n".join(lines) + "\n")
 
 
-def build_header(*, configfiles, when=None, root="."):
+def config_provenance(configfiles, overrides=()):
+    """LaTeX of the configuration a study ran with: the configuration files in the order they apply, then the
+    ``--config KEY=VALUE`` overrides of the command line (or of the profile), which apply last, as a shell would
+    take them (quoted where needed, in typewriter type with upright quotes and ASCII hyphens, so that the
+    command copied from the PDF runs).
+
+    ``configfiles``: paths; ``overrides``: the raw ``KEY=VALUE`` strings (Snakemake's
+    ``workflow.config_settings.config_args``).
+    """
+    import shlex
+
+    files = ", ".join(latex_escape(str(f)) for f in configfiles)
+    text = (files + " (in the order they apply)") if configfiles else "none"
+    overrides = [str(o) for o in overrides or ()]
+    if overrides:
+        command = shlex.join(["--config", *overrides])
+        typed = latex_escape(command).replace("-", "-{}").replace("'", r"\textquotesingle{}")
+        text += r", then \texttt{" + typed + "}"
+    return text
+
+
+def build_header(*, configfiles, overrides=(), when=None, root="."):
     """LaTeX for the page-1 header: build date, git commit (and whether the tree has uncommitted changes),
-    configuration files and machine."""
+    configuration (files and ``--config`` overrides, :func:`config_provenance`) and machine."""
     import datetime
     import os
     import platform
@@ -479,10 +500,11 @@ def build_header(*, configfiles, when=None, root="."):
     rows = [
         ("Built", when.strftime("%Y-%m-%d %H:%M UTC")),
         ("Code", code),
-        ("Configuration", (", ".join(map(str, configfiles)) + " (in the order they apply)") if configfiles else "none"),
         ("Machine", machine),
     ]
-    body = "\n".join(rf"{k} & {latex_escape(v)} \\" for k, v in rows)
+    rows = [(k, latex_escape(v)) for k, v in rows]
+    rows.insert(2, ("Configuration", config_provenance(configfiles, overrides)))
+    body = "\n".join(rf"{k} & {v} \\" for k, v in rows)
     return (
         "\\begin{center}\\small\n\\begin{tabularx}{0.9\\linewidth}{@{}l>{\\raggedright\\arraybackslash}X@{}}\n"
         + body + "\n\\end{tabularx}\n\\end{center}\n"
