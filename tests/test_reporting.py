@@ -277,6 +277,34 @@ def test_page_one_names_the_config_overrides_after_the_files():
     assert len(row) == 1 and "n\\_train=[30,60]" in row[0]
 
 
+def test_a_table_without_any_studied_activity_is_left_out_and_the_note_says_so(tmp_path):
+    """Before: the quick study's mocap Table I was three rows of "data not on this machine" (it studies walk,
+    of Table II, only). Now a table none of whose activities is studied on a source is not built, and the
+    note under that source's tables says which table is left out and why."""
+    from bsrbench.reporting.report import write_body
+    from bsrbench.reporting.tables import tables_with_rows
+
+    walk_only = {"Walk": "walk", "Acrobatics": {"kind": "download", "activity": "acrobatics",
+                                                "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz"}}
+    assert tables_with_rows(walk_only) == ["II"]
+    assert tables_with_rows({"Golf": "golf", "Run": "run"}) == ["I", "II"]
+    assert tables_with_rows({"Run": {"kind": "here", "activity": "run"}}) == []
+    note = missing_data_note("mocap", walk_only)
+    lines = note.split("\\\\\n")
+    assert re.sub(r".*\\small\n", "", lines[0], flags=re.S) == (
+        r"Table I (\mbox{Acrobatics}, \mbox{Navigate} and \mbox{Golf}) is not shown for the mocap data: this "
+        "study has none of its activities on that source, so every row would be empty.")
+    assert note.count("not shown") == 1 and r"\mbox{Acrobatics}: the data are not on this machine" in note
+    both = missing_data_note("hsc", {"Laugh": "laugh"})
+    assert "Tables I and II (" in both and "are not shown for the hsc data" in both and "their activities" in both
+    assert "not shown" not in missing_data_note("hsc", {"Golf": "golf", "Run": "run"})
+    # the note of a source left without any table still reaches the report, after the tables
+    body = tmp_path / "body.tex"
+    write_body(body, tables=["tables/tableI_hsc.tex"], figures=[], notes={"hsc": "HSC NOTE", "mocap": "MOCAP NOTE"})
+    text = body.read_text()
+    assert text.index(r"\input{tables/tableI_hsc}") < text.index("HSC NOTE") < text.index("MOCAP NOTE")
+
+
 def test_parameters_table_lists_configured_cv_chosen_and_default_values():
     rows = _rows({("golf", "PM"): [8.0, 9.0]})
     rows[0]["params"], rows[1]["params"] = {"a": 1, "k": 64}, {"a": 1, "k": 128}

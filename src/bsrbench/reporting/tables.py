@@ -26,6 +26,17 @@ PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
 
 
+def tables_with_rows(status):
+    """The paper's tables (``"I"``, ``"II"``, in order) that have a row of results on a data source: those with at
+    least one studied activity. A table none of whose activities is studied on a source would be a block of
+    "no data" rows; the report leaves it out and says so (:func:`bsrbench.reporting.report.missing_data_note`).
+
+    ``status``: {paper activity: studied activity id, or a dict saying why it has no row} (the workflow's
+    ``data_status``; a paper activity missing from it has no row).
+    """
+    return [t for t, names in PAPER_TABLES.items() if any(isinstance(status.get(pa), str) for pa in names)]
+
+
 def paper_key(name):
     """Case-insensitive key of a paper activity name (the paper writes "kick soccer ball" and "Run")."""
     return " ".join(str(name).lower().split()) if isinstance(name, str) and name.strip() else ""
