@@ -394,6 +394,34 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     plt.close(fig)
 
 
+def test_error_figure_draws_the_paper_only_where_this_study_has_a_point():
+    """Before: Fig. 1 drew the paper's point at every configured N, also at an N the study skipped for that
+    activity (walk at N = 100 in the quick study: 167 frames leave 67 < min_test test frames), with no point of
+    ours beside it and no word in the caption. Now the paper is drawn at the N the study ran for the activity,
+    and paper_points_not_drawn names what is left out (for the caption)."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import paper_points_not_drawn, plot_error_vs_ntrain
+
+    paper = pd.read_csv(io.StringIO(PAPER_CSV + "I,Golf,100,PM,5.0,1.0\nI,Acrobatics,100,PM,9.0,1.0\n"))
+    paper["key"] = paper["activity"].map(paper_key)
+    rows = [dict(r, n_train=30) for r in _rows({("golf", "PM"): [8.0, 9.0], ("acrobatics", "PM"): [12.0, 13.0]})]
+    rows += [dict(r, n_train=100) for r in _rows({("golf", "PM"): [6.0, 7.0]})]  # acrobatics: N = 100 skipped
+    df = aggregate_rows(rows)
+    kw = dict(source="hsc", methods=["PM"], labels=LABELS, n_train=[30, 100])
+    fig = plot_error_vs_ntrain(df, paper, **kw)
+    panels = {ax.get_title(): ax for ax in fig.axes}
+    for title, sizes in (("Golf", [30, 100]), ("Acrobatics", [30])):
+        dotted = [ln for ln in panels[title].get_lines() if ln.get_linestyle() == ":"]
+        assert len(dotted) == 1, title  # the paper's PM line
+        np.testing.assert_allclose(dotted[0].get_xdata(), sizes, rtol=0.05, err_msg=title)
+    plt.close(fig)
+    assert paper_points_not_drawn(df, paper, **kw) == {"Acrobatics": [100]}
+    # a method the figure does not draw, or a size the study does not configure, is no omission
+    assert paper_points_not_drawn(df, paper, **{**kw, "methods": ["NN1"]}) == {}
+    assert paper_points_not_drawn(df, paper, **{**kw, "n_train": [30]}) == {}
+
+
 def _error_axis_labels(lo, hi):
     """Fig. 1 for errors from about ``lo`` (N = 100) to ``hi`` (N = 30) degrees: (y limits, {value: label} of the
     labelled y ticks inside them), read from the drawn canvas (major and minor ticks)."""

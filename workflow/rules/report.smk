@@ -44,6 +44,7 @@ rule report_text:
     params:
         design=study_design(),
         labels=method_labels(),
+        figure_methods=table_methods(),
         study=config["study"],
         tables=table_targets(),
         figures=figure_targets("pdf"),
