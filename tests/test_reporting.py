@@ -236,6 +236,31 @@ def test_an_aggregate_of_another_configuration_is_never_reported(tmp_path):
         read_results(path, design=DESIGN)
 
 
+def test_design_changes_name_what_differs_and_the_error_says_what_to_do(tmp_path):
+    """The early warning (workflow/rules/common.smk) and the report rules' check share design_changes; the
+    check's error names the study and the three ways out (before: 'rebuild it (snakemake <table>)', which does
+    nothing when Snakemake has no record of the old design)."""
+    from bsrbench.reporting.tables import design_changes, study_of
+
+    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
+    assert design_changes(df, DESIGN) == (0, 0, [])
+    assert design_changes(df[["protocol", "source", "activity", "method", "n_train", "seed"]],
+                          {**DESIGN, "n_train": [30, 60]}) == (
+        4, 0, ["n_train: the table has [30], the configuration [30, 60]"])
+    assert design_changes(df, {**DESIGN, "methods": ["PM"]}) == (
+        0, 2, ["method: the table has ['PM', 'RVM'], the configuration ['PM']"])
+    assert study_of("results/quick/aggregate/results.csv") == "quick"
+    assert study_of(tmp_path / "results.csv") is None
+    path = tmp_path / "results" / "quick" / "aggregate" / "results.csv"
+    path.parent.mkdir(parents=True)
+    df.to_csv(path, index=False)
+    with pytest.raises(DataFileError) as err:
+        read_results(path, design={**DESIGN, "seeds": [0, 1, 2]})
+    msg = str(err.value)
+    assert "the design of study 'quick' has changed" in msg and "add --forcerun aggregate" in msg
+    assert "(--config study=NAME)" in msg and msg.endswith(f"delete results/quick/ to start afresh")
+
+
 def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     status = {
         "Golf": "golf",

@@ -417,6 +417,31 @@ def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
     assert _snapshot(ci_run) == before
 
 
+@pytest.mark.parametrize("override, changed", [
+    ("n_seeds=3", r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 7 job\(s\) to add, 0 no longer"),
+    ("run=[RVM,PM]", r"method: the table has \['DDL', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the configuration "
+                     r"\['PM', 'RVM'\]; 0 job\(s\) to add, 10 no longer configured"),
+])
+def test_a_design_changed_under_the_same_study_name_is_named_at_the_start(ci_run, override, changed):
+    """Before: nothing said that the ci study's results were of another design until the aggregate check of a
+    report rule failed. Now the dry run says it before any job: what changed, that the aggregate and report
+    will be rebuilt, and how to keep the old study (a study name of its own) or start afresh."""
+    before = _snapshot(ci_run)
+    res = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", override, cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    warning = re.search(r"Warning: study 'ci': the configuration differs from the design of its results in "
+                        r"results/ci/ \(results/ci/aggregate/results\.csv: (.*)", out)
+    assert warning, out[-3000:]
+    assert re.match(changed, warning.group(1)), warning.group(1)
+    assert "run this design under a study name of its own (--config study=NAME" in out
+    assert "delete results/ci/ and reports/ci/" in out
+    assert out.index("Warning: study 'ci'") < out.index("Job stats")  # before the jobs
+    assert _snapshot(ci_run) == before
+    same = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", "n_train=[30]", cwd=ci_run)
+    assert same.returncode == 0 and "the configuration differs" not in same.stdout + same.stderr
+
+
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
     from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes
