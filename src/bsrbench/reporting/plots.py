@@ -78,6 +78,11 @@ def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
     set meets both bounds, the set with at least ``min_labels`` ticks that exceeds them least; if none has that
     many (a range narrower than about a factor 1.5), evenly spaced ticks (matplotlib's MaxNLocator). So a range
     that crosses a power of ten is labelled on both sides of it (7-20: 7, 10, 15, 20), and 3-25 gets 3, 5, 10, 20.
+
+    Not matplotlib's LogLocator and LogFormatter: the formatter labels a fixed set of leading digits chosen by the
+    number of decades shown (``minor_thresholds``: 1; 1, 2, 3, 4, 6; or 1-9), and ``subs`` fixes one set for every
+    range, so no setting gives 3, 5, 10, 20 on 3-25 (it gets 3, 4, 6, 10, 20 or 3-10, 20) together with labels
+    above 10 on 7-18 (it gets 10 alone, or 7, 8, 9, 10) and four labels on 9.6-10.4 (checked with matplotlib 3.11).
     """
     llo, lhi = math.log10(lo), math.log10(hi)
     span = max(lhi - llo, 1e-12)
