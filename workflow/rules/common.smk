@@ -499,10 +499,10 @@ def design_change_message():
         return None
     if not (missing or extra):
         return None
-    study = config["study"]
+    study, changes = config["study"], "; ".join(differ)
     return (
         f"study {study!r}: the configuration differs from the design of its results in {RESULTS}/ ({aggregate}: "
-        + "; ".join(differ) + f"; {missing} job(s) to add, {extra} no longer configured). Snakemake reruns what "
+        f"{changes}; {missing} job(s) to add, {extra} no longer configured). Snakemake reruns what "
         f"this needs and rebuilds the aggregate table and the report of study {study!r} for the configuration as "
         f"it is now, replacing the old report (fits no longer configured stay unused in {RESULTS}/fit/). To keep "
         f"the old study's table and report instead, run this design under a study name of its own (--config "
@@ -521,7 +521,7 @@ def _warn_if_design_changed():
     if message:
         from snakemake.logging import logger
 
-        logger.warning("Warning: " + message)
+        logger.warning(f"Warning: {message}")
 
 
 _warn_if_design_changed()
