@@ -472,10 +472,14 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
 
 def test_ci_report_names_the_config_overrides_it_ran_with(ci_run, tmp_path):
     """Before: page 1 named the configuration files but not the `--config` overrides. In a copy of the ci run (so
-    that the other tests see its report as built), overrides that change no job's result rebuild the PDF only,
-    and page 1 lists them after the files, copyable as typed."""
+    that the other tests see its report as built), an override that changes no job's result rebuilds the PDF
+    only, and page 1 lists it after the files, copyable as typed; job_server, an execution setting (the SLURM
+    profile's), is not part of the study's configuration: switching it reruns nothing."""
     work = tmp_path / "work"
     shutil.copytree(ci_run, work, symlinks=True)
+    res = smk("reports/ci/report.pdf", "-n", "--cores", "1", "--configfile", "config/ci.yaml",
+              "--config", "job_server=false", cwd=work)
+    assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
     res = smk("reports/ci/report.pdf", "--cores", "1", "--configfile", "config/ci.yaml",
               "--config", "job_server=false", "n_train=[30]", cwd=work)
     out = res.stdout + res.stderr
@@ -484,7 +488,7 @@ def test_ci_report_names_the_config_overrides_it_ran_with(ci_run, tmp_path):
     page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", str(work / "reports" / "ci" / "report.pdf"), "-"],
                            capture_output=True, text=True).stdout
     flat = " ".join(page1.split())
-    assert "config/ci.yaml (in the order they apply), then --config job_server=false 'n_train=[30]'" in flat, flat
+    assert "config/ci.yaml (in the order they apply), then --config 'n_train=[30]' Machine" in flat, flat
 
 
 def test_ci_rerun_is_a_no_op(ci_run):

@@ -433,6 +433,15 @@ def data_status(source):
     return out
 
 
+def config_overrides():
+    """The `--config KEY=VALUE` strings of this run (command line or profile), as given, that configure the study:
+    all but job_server, an execution setting like --cores (switching it reruns nothing, the report included; the
+    SLURM profile sets it)."""
+    return [
+        str(a) for a in workflow.config_settings.config_args or [] if str(a).partition("=")[0].strip() != "job_server"
+    ]
+
+
 def study_targets():
     return [
         f"{RESULTS}/aggregate/results.csv",

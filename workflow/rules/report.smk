@@ -235,7 +235,7 @@ rule report_pdf:
             ]
         ],
         # and the --config KEY=VALUE overrides (command line or profile), which apply after them
-        overrides=list(workflow.config_settings.config_args or []),
+        overrides=config_overrides(),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"
