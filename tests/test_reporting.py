@@ -291,12 +291,12 @@ def test_page_one_names_the_config_overrides_after_the_files():
     assert text.startswith(r"config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply), then ")
     q = r"\textquotesingle{}"
     assert text.endswith(
-        r"\texttt{-{}-{}config study=ci\_n " + q + "n\\_train=[30,60]" + q + " " + q
+        r"\texttt{\frenchspacing -{}-{}config study=ci\_n " + q + "n\\_train=[30,60]" + q + " " + q
         + r"report=\{subjective\_methods: [SR]\}" + q + "}"
     ), text
     assert config_provenance(files, []) == config_provenance(files) == (
         "config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply)")
-    assert config_provenance([], ["job_server=False"]) == r"none, then \texttt{-{}-{}config job\_server=False}"
+    assert config_provenance([], ["job_server=False"]) == r"none, then \texttt{\frenchspacing -{}-{}config job\_server=False}"
     header = build_header(configfiles=files, overrides=["n_train=[30,60]"])
     row = [ln for ln in header.splitlines() if ln.startswith("Configuration & ")]
     assert len(row) == 1 and "n\\_train=[30,60]" in row[0]
