@@ -500,11 +500,13 @@ def design_change_message():
     aggregate = Path(f"{RESULTS}/aggregate/results.csv")
     if not aggregate.is_file():
         return None
-    try:
-        import pandas as pd
+    import pandas as pd
 
+    try:
         missing, extra, differ = design_changes(pd.read_csv(aggregate, usecols=KEY_COLUMNS), study_design())
-    except Exception:  # unreadable or damaged: not a design change; the aggregate and report rules handle it
+    except (OSError, UnicodeDecodeError, ValueError, TypeError):
+        # unreadable or damaged (pandas' parser errors are ValueErrors): not a design change; the aggregate and
+        # report rules handle it
         return None
     if not (missing or extra):
         return None
