@@ -236,6 +236,31 @@ def test_an_aggregate_of_another_configuration_is_never_reported(tmp_path):
         read_results(path, design=DESIGN)
 
 
+def test_design_changes_name_what_differs_and_the_error_says_what_to_do(tmp_path):
+    """The early warning (workflow/rules/common.smk) and the report rules' check share design_changes; the
+    check's error names the study and the three ways out (before: 'rebuild it (snakemake <table>)', which does
+    nothing when Snakemake has no record of the old design)."""
+    from bsrbench.reporting.tables import design_changes, study_of
+
+    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
+    assert design_changes(df, DESIGN) == (0, 0, [])
+    assert design_changes(df[["protocol", "source", "activity", "method", "n_train", "seed"]],
+                          {**DESIGN, "n_train": [30, 60]}) == (
+        4, 0, ["n_train: the table has [30], the configuration [30, 60]"])
+    assert design_changes(df, {**DESIGN, "methods": ["PM"]}) == (
+        0, 2, ["method: the table has ['PM', 'RVM'], the configuration ['PM']"])
+    assert study_of("results/quick/aggregate/results.csv") == "quick"
+    assert study_of(tmp_path / "results.csv") is None
+    path = tmp_path / "results" / "quick" / "aggregate" / "results.csv"
+    path.parent.mkdir(parents=True)
+    df.to_csv(path, index=False)
+    with pytest.raises(DataFileError) as err:
+        read_results(path, design={**DESIGN, "seeds": [0, 1, 2]})
+    msg = str(err.value)
+    assert "the design of study 'quick' has changed" in msg and "add --forcerun aggregate" in msg
+    assert "(--config study=NAME)" in msg and msg.endswith(f"delete results/quick/ to start afresh")
+
+
 def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     status = {
         "Golf": "golf",
@@ -253,6 +278,56 @@ def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     assert r"\mbox{Navigate}, \mbox{Throw and catch football}" in note and "no mocap data set" in note
     assert "Golf" not in note
     assert missing_data_note("hsc", {pa: "x" for t in PAPER_TABLES.values() for pa in t}) == ""
+
+
+def test_page_one_names_the_config_overrides_after_the_files():
+    """Before: the header listed the configuration files only, so a study run with `--config n_train=[30,60]`
+    claimed the files' N. Now the overrides follow the files, as a shell takes them (quoted where the shell
+    needs it), in typewriter type with ASCII hyphens and upright quotes."""
+    from bsrbench.reporting.report import build_header, config_provenance
+
+    files = ["config/datasets.yaml", "config/config.yaml", "config/ci.yaml"]
+    text = config_provenance(files, ["study=ci_n", "n_train=[30,60]", "report={subjective_methods: [SR]}"])
+    assert text.startswith(r"config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply), then ")
+    q = r"\textquotesingle{}"
+    assert text.endswith(
+        r"\texttt{\frenchspacing -{}-{}config study=ci\_n " + q + "n\\_train=[30,60]" + q + " " + q
+        + r"report=\{subjective\_methods: [SR]\}" + q + "}"
+    ), text
+    assert config_provenance(files, []) == config_provenance(files) == (
+        "config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply)")
+    assert config_provenance([], ["job_server=False"]) == r"none, then \texttt{\frenchspacing -{}-{}config job\_server=False}"
+    header = build_header(configfiles=files, overrides=["n_train=[30,60]"])
+    row = [ln for ln in header.splitlines() if ln.startswith("Configuration & ")]
+    assert len(row) == 1 and "n\\_train=[30,60]" in row[0]
+
+
+def test_a_table_without_any_studied_activity_is_left_out_and_the_note_says_so(tmp_path):
+    """Before: the quick study's mocap Table I was three rows of "data not on this machine" (it studies walk,
+    of Table II, only). Now a table none of whose activities is studied on a source is not built, and the
+    note under that source's tables says which table is left out and why."""
+    from bsrbench.reporting.report import write_body
+    from bsrbench.reporting.tables import tables_with_rows
+
+    walk_only = {"Walk": "walk", "Acrobatics": {"kind": "download", "activity": "acrobatics",
+                                                "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz"}}
+    assert tables_with_rows(walk_only) == ["II"]
+    assert tables_with_rows({"Golf": "golf", "Run": "run"}) == ["I", "II"]
+    assert tables_with_rows({"Run": {"kind": "here", "activity": "run"}}) == []
+    note = missing_data_note("mocap", walk_only)
+    lines = note.split("\\\\\n")
+    assert re.sub(r".*\\small\n", "", lines[0], flags=re.S) == (
+        r"Table I (\mbox{Acrobatics}, \mbox{Navigate} and \mbox{Golf}) is not shown for the mocap data: this "
+        "study has none of its activities on that source, so every row would be empty.")
+    assert note.count("not shown") == 1 and r"\mbox{Acrobatics}: the data are not on this machine" in note
+    both = missing_data_note("hsc", {"Laugh": "laugh"})
+    assert "Tables I and II (" in both and "are not shown for the hsc data" in both and "their activities" in both
+    assert "not shown" not in missing_data_note("hsc", {"Golf": "golf", "Run": "run"})
+    # the note of a source left without any table still reaches the report, after the tables
+    body = tmp_path / "body.tex"
+    write_body(body, tables=["tables/tableI_hsc.tex"], figures=[], notes={"hsc": "HSC NOTE", "mocap": "MOCAP NOTE"})
+    text = body.read_text()
+    assert text.index(r"\input{tables/tableI_hsc}") < text.index("HSC NOTE") < text.index("MOCAP NOTE")
 
 
 def test_parameters_table_lists_configured_cv_chosen_and_default_values():
@@ -342,6 +417,34 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
                                                                   ("random", "contiguous") if p in protocols]
     assert "PM" in names and "the paper" in names
     plt.close(fig)
+
+
+def test_error_figure_draws_the_paper_only_where_this_study_has_a_point():
+    """Before: Fig. 1 drew the paper's point at every configured N, also at an N the study skipped for that
+    activity (walk at N = 100 in the quick study: 167 frames leave 67 < min_test test frames), with no point of
+    ours beside it and no word in the caption. Now the paper is drawn at the N the study ran for the activity,
+    and paper_points_not_drawn names what is left out (for the caption)."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import paper_points_not_drawn, plot_error_vs_ntrain
+
+    paper = pd.read_csv(io.StringIO(PAPER_CSV + "I,Golf,100,PM,5.0,1.0\nI,Acrobatics,100,PM,9.0,1.0\n"))
+    paper["key"] = paper["activity"].map(paper_key)
+    rows = [dict(r, n_train=30) for r in _rows({("golf", "PM"): [8.0, 9.0], ("acrobatics", "PM"): [12.0, 13.0]})]
+    rows += [dict(r, n_train=100) for r in _rows({("golf", "PM"): [6.0, 7.0]})]  # acrobatics: N = 100 skipped
+    df = aggregate_rows(rows)
+    kw = dict(source="hsc", methods=["PM"], labels=LABELS, n_train=[30, 100])
+    fig = plot_error_vs_ntrain(df, paper, **kw)
+    panels = {ax.get_title(): ax for ax in fig.axes}
+    for title, sizes in (("Golf", [30, 100]), ("Acrobatics", [30])):
+        dotted = [ln for ln in panels[title].get_lines() if ln.get_linestyle() == ":"]
+        assert len(dotted) == 1, title  # the paper's PM line
+        np.testing.assert_allclose(dotted[0].get_xdata(), sizes, rtol=0.05, err_msg=title)
+    plt.close(fig)
+    assert paper_points_not_drawn(df, paper, **kw) == {"Acrobatics": [100]}
+    # a method the figure does not draw, or a size the study does not configure, is no omission
+    assert paper_points_not_drawn(df, paper, **{**kw, "methods": ["NN1"]}) == {}
+    assert paper_points_not_drawn(df, paper, **{**kw, "n_train": [30]}) == {}
 
 
 def _error_axis_labels(lo, hi):

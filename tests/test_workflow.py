@@ -192,6 +192,15 @@ def _planned_files(res):
             for f in ln.split(":", 1)[1].split(",")]
 
 
+def test_the_quick_study_builds_only_the_tables_with_a_studied_activity():
+    """The quick study has acrobatics (Table I) on hsc and walk (Table II) on mocap: before, all four tables were
+    built, two of them blocks of "no data" rows (mocap Table I: "data not on this machine" three times)."""
+    res = smk("-n", "--forceall", "--cores", "1")
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    tables = sorted(f for f in _planned_files(res) if re.fullmatch(r"reports/quick/tables/table\w+\.tex", f))
+    assert tables == ["reports/quick/tables/tableII_mocap.tex", "reports/quick/tables/tableI_hsc.tex"]
+
+
 def test_two_studies_share_no_report_result_or_log_file():
     """Each study's report is in reports/{study}/ (before: reports/tables, reports/figures and reports/report.pdf
     for every study, so that the PDF and `snakemake --report` showed whichever study wrote last). Only the shared
@@ -258,7 +267,13 @@ def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
 
 
 def test_ci_tables_have_the_paper_rows(ci_run):
-    for table, names in PAPER_TABLE_ROWS.items():
+    """Table I has a row per paper activity; Table II, none of whose activities the ci study has, is left out,
+    and the note under the hsc tables says so (before: a table of "no data" rows)."""
+    assert not (ci_run / "reports" / "ci" / "tables" / "tableII_hsc.tex").exists()
+    body = (ci_run / "reports" / "ci" / "tables" / "body.tex").read_text()
+    assert r"\input{tables/tableI_hsc}" in body and "tableII" not in body
+    assert re.search(r"Table II \(.*\) is not shown for the hsc data: this study has none of its activities", body)
+    for table, names in list(PAPER_TABLE_ROWS.items())[:1]:
         text = (ci_run / "reports" / "ci" / "tables" / f"table{table}_hsc.tex").read_text()
         assert r"\toprule" in text and r"\bottomrule" in text
         rows = [ln.split(" & ")[0] for ln in text.splitlines() if ln.endswith(r"\\") and not ln.startswith(r"\emph")]
@@ -402,6 +417,31 @@ def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
     assert _snapshot(ci_run) == before
 
 
+@pytest.mark.parametrize("override, changed", [
+    ("n_seeds=3", r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 7 job\(s\) to add, 0 no longer"),
+    ("run=[RVM,PM]", r"method: the table has \['DDL', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the configuration "
+                     r"\['PM', 'RVM'\]; 0 job\(s\) to add, 10 no longer configured"),
+])
+def test_a_design_changed_under_the_same_study_name_is_named_at_the_start(ci_run, override, changed):
+    """Before: nothing said that the ci study's results were of another design until the aggregate check of a
+    report rule failed. Now the dry run says it before any job: what changed, that the aggregate and report
+    will be rebuilt, and how to keep the old study (a study name of its own) or start afresh."""
+    before = _snapshot(ci_run)
+    res = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", override, cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    warning = re.search(r"Warning: study 'ci': the configuration differs from the design of its results in "
+                        r"results/ci/ \(results/ci/aggregate/results\.csv: (.*)", out)
+    assert warning, out[-3000:]
+    assert re.match(changed, warning.group(1)), warning.group(1)
+    assert "run this design under a study name of its own (--config study=NAME" in out
+    assert "delete results/ci/ and reports/ci/" in out
+    assert out.index("Warning: study 'ci'") < out.index("Job stats")  # before the jobs
+    assert _snapshot(ci_run) == before
+    same = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", "n_train=[30]", cwd=ci_run)
+    assert same.returncode == 0 and "the configuration differs" not in same.stdout + same.stderr
+
+
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
     from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes
@@ -428,6 +468,28 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
     # typewriter text copies as typed (underscores are glyphs, not rules)
     text = subprocess.run(["pdftotext", pdf, "-"], capture_output=True, text=True).stdout
     assert "study_activities.hsc" in text
+
+
+def test_ci_report_names_the_config_overrides_it_ran_with(ci_run, tmp_path):
+    """Before: page 1 named the configuration files but not the `--config` overrides. In a copy of the ci run (so
+    that the other tests see its report as built), an override that changes no job's result rebuilds the PDF
+    only, and page 1 lists it after the files, copyable as typed; job_server, an execution setting (the SLURM
+    profile's), is not part of the study's configuration: switching it reruns nothing."""
+    work = tmp_path / "work"
+    shutil.copytree(ci_run, work, symlinks=True)
+    res = smk("reports/ci/report.pdf", "-n", "--cores", "1", "--configfile", "config/ci.yaml",
+              "--config", "job_server=false", cwd=work)
+    assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
+    res = smk("reports/ci/report.pdf", "--cores", "1", "--configfile", "config/ci.yaml",
+              "--config", "job_server=false", "n_train=[30]", cwd=work)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    assert set(re.findall(r"^localrule (\w+):", out, re.M)) == {"report_pdf"}, out[-3000:]
+    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", str(work / "reports" / "ci" / "report.pdf"), "-"],
+                           capture_output=True, text=True).stdout
+    flat = " ".join(page1.split())
+    assert "config/ci.yaml (in the order they apply), then --config 'n_train=[30]'" in flat, flat
+    assert "job_server" not in flat
 
 
 def test_ci_rerun_is_a_no_op(ci_run):

@@ -299,8 +299,12 @@ def report_sources():
 
 
 def table_targets():
+    """The paper's tables per studied source, but none whose activities are all unstudied on that source (a block
+    of "no data" rows; the note under the source's tables says it is left out)."""
+    from bsrbench.reporting.tables import tables_with_rows
+
     return [
-        f"{REPORTS}/tables/table{t}_{s}.tex" for s in report_sources() for t in ("I", "II")
+        f"{REPORTS}/tables/table{t}_{s}.tex" for s in report_sources() for t in tables_with_rows(data_status(s))
     ]
 
 
@@ -429,6 +433,15 @@ def data_status(source):
     return out
 
 
+def config_overrides():
+    """The `--config KEY=VALUE` strings of this run (command line or profile), as given, that configure the study:
+    all but job_server, an execution setting like --cores (switching it reruns nothing, the report included; the
+    SLURM profile sets it)."""
+    return [
+        str(a) for a in workflow.config_settings.config_args or [] if str(a).partition("=")[0].strip() != "job_server"
+    ]
+
+
 def study_targets():
     return [
         f"{RESULTS}/aggregate/results.csv",
@@ -475,3 +488,51 @@ def _check_report_is_current():
 
 
 _check_report_is_current()
+
+
+def design_change_message():
+    """When results/{study}/aggregate/results.csv exists but holds another design than the configured one (a
+    method, size, seed, protocol or activity added or removed under the same study name): a message naming what
+    changed and what to do; None otherwise, or when the table cannot be read (the aggregate rule rebuilds it, and
+    the report rules name the problem). The table's key columns are the record of the design it was built for."""
+    from bsrbench.reporting.tables import KEY_COLUMNS, design_changes
+
+    aggregate = Path(f"{RESULTS}/aggregate/results.csv")
+    if not aggregate.is_file():
+        return None
+    import pandas as pd
+
+    try:
+        missing, extra, differ = design_changes(pd.read_csv(aggregate, usecols=KEY_COLUMNS), study_design())
+    except (OSError, UnicodeDecodeError, ValueError, TypeError):
+        # unreadable or damaged (pandas' parser errors are ValueErrors): not a design change; the aggregate and
+        # report rules handle it
+        return None
+    if not (missing or extra):
+        return None
+    study, changes = config["study"], "; ".join(differ)
+    return (
+        f"study {study!r}: the configuration differs from the design of its results in {RESULTS}/ ({aggregate}: "
+        f"{changes}; {missing} job(s) to add, {extra} no longer configured). Snakemake reruns what "
+        f"this needs and rebuilds the aggregate table and the report of study {study!r} for the configuration as "
+        f"it is now, replacing the old report (fits no longer configured stay unused in {RESULTS}/fit/). To keep "
+        f"the old study's table and report instead, run this design under a study name of its own (--config "
+        f"study=NAME, or the key 'study' of your configuration file); to start study {study!r} afresh, delete "
+        f"{RESULTS}/ and {REPORTS}/."
+    )
+
+
+def _warn_if_design_changed():
+    """Say at the start of the run (dry runs too), before any job, that the study's design changed under the same
+    name. Not under `--report` (_check_report_is_current refuses the stale table) nor in the jobs Snakemake
+    spawns (cluster jobs parse the Snakefile again)."""
+    if not workflow.is_main_process or _report_arg(sys.argv) is not None:
+        return
+    message = design_change_message()
+    if message:
+        from snakemake.logging import logger
+
+        logger.warning(f"Warning: {message}")
+
+
+_warn_if_design_changed()

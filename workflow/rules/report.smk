@@ -44,6 +44,7 @@ rule report_text:
     params:
         design=study_design(),
         labels=method_labels(),
+        figure_methods=table_methods(),
         study=config["study"],
         tables=table_targets(),
         figures=figure_targets("pdf"),
@@ -233,6 +234,8 @@ rule report_pdf:
                 *workflow.overwrite_configfiles,
             ]
         ],
+        # and the --config KEY=VALUE overrides (command line or profile), which apply after them
+        overrides=config_overrides(),
     threads: 1
     conda:
         "../envs/bsrbench.yaml"

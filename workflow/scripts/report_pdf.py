@@ -14,5 +14,5 @@ build_pdf(
     sm.output[0],
     root=Path(sm.output[0]).parent,
     log=sm.log[0] + ".latexmk",
-    header=build_header(configfiles=list(sm.params.configfiles)),
+    header=build_header(configfiles=list(sm.params.configfiles), overrides=list(sm.params.overrides)),
 )

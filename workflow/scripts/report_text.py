@@ -5,8 +5,9 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
+from bsrbench.reporting.plots import paper_points_not_drawn  # noqa: E402
 from bsrbench.reporting.report import missing_data_note, write_body, write_generated  # noqa: E402
-from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E402
+from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results  # noqa: E402
 from bsrbench.study import estimator_defaults  # noqa: E402
 
 sm = snakemake  # noqa: F821
@@ -14,6 +15,7 @@ root = Path(sm.output.body).parent.parent  # the study's report folder reports/{
 labels = dict(sm.params.labels)
 first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
 df = read_results(sm.input.results, design=dict(sm.params.design))
+paper = read_paper_tables(sm.input.paper)
 # the estimators' defaults: the parameter table shows every value a method ran with
 estimators = df.drop_duplicates("method")[["method", "estimator"]].itertuples(index=False)
 defaults = {m: estimator_defaults(e) for m, e in estimators}
@@ -30,6 +32,19 @@ study_lines = "; ".join(f"{ls} lines: {p} protocol" for p, ls in (("random", "so
                         if p in _protocols)
 
 
+def not_drawn(source):
+    """The sentence naming the paper's points Fig. 1 leaves out on ``source`` (plots.paper_points_not_drawn), or ""."""
+    left = paper_points_not_drawn(df, paper, source=source, methods=list(sm.params.figure_methods), labels=labels,
+                                  n_train=list(sm.params.design["n_train"]))
+    if not left:
+        return ""
+    where = "; ".join(f"{latex_escape(a)} at $N = {', '.join(map(str, ns))}$" for a, ns in left.items())
+    return (
+        f" Not drawn: the paper's points at the sizes this study skipped for an activity (too few test frames "
+        f"would remain; see the tables): {where}."
+    )
+
+
 def caption(kind, source):
     """The caption of one figure (one per source and kind)."""
     if kind == "error_vs_ntrain":
@@ -37,7 +52,7 @@ def caption(kind, source):
             f"Error against the number of training frames $N$ on the {source} data, one panel per activity "
             "(log-log axes, ticks at the sizes studied): mean $\\pm$ std over seeds, methods dodged sideways so "
             f"that their error bars do not overlap. Filled markers: this study ({study_lines}); open markers, "
-            "dotted lines: the paper's Tables I and II at the same $N$."
+            "dotted lines: the paper's Tables I and II at the same $N$." + not_drawn(source)
         )
     kinds = dict(sm.params.stick_kinds).get(source, [])
     if kind == "subjective" and kinds == ["authors"]:
@@ -80,7 +95,7 @@ def caption(kind, source):
 write_generated(
     sm.output.findings,
     df,
-    read_paper_tables(sm.input.paper),
+    paper,
     labels=labels,
     defaults=defaults,
     study=(sm.params.study, Path(sm.input.results).parent.parent.as_posix()),  # results/{study}/aggregate/..

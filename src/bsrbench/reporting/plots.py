@@ -4,7 +4,7 @@ Every figure is drawn at the size it is printed (at most :data:`TEXT_WIDTH` inch
 it unscaled), so the font sizes below are printed sizes, none under :data:`MIN_FONT_PT`.
 
 * :func:`plot_error_vs_ntrain`: error against training-set size per activity of one source, every method
-  with error bars (std over seeds), the paper's values at the same sizes as open markers.
+  with error bars (std over seeds), the paper's values at the sizes run for each activity as open markers.
 * :func:`plot_calibration`: nominal against empirical coverage of the central predictive intervals, one
   figure per source.
 * :func:`plot_subjective_sticks`: the paper's Fig. 2 (silhouette, true pose, predicted poses as 3-D stick
@@ -78,6 +78,11 @@ def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
     set meets both bounds, the set with at least ``min_labels`` ticks that exceeds them least; if none has that
     many (a range narrower than about a factor 1.5), evenly spaced ticks (matplotlib's MaxNLocator). So a range
     that crosses a power of ten is labelled on both sides of it (7-20: 7, 10, 15, 20), and 3-25 gets 3, 5, 10, 20.
+
+    Not matplotlib's LogLocator and LogFormatter: the formatter labels a fixed set of leading digits chosen by the
+    number of decades shown (``minor_thresholds``: 1; 1, 2, 3, 4, 6; or 1-9), and ``subs`` fixes one set for every
+    range, so no setting gives 3, 5, 10, 20 on 3-25 (it gets 3, 4, 6, 10, 20 or 3-10, 20) together with labels
+    above 10 on 7-18 (it gets 10 alone, or 7, 8, 9, 10) and four labels on 9.6-10.4 (checked with matplotlib 3.11).
     """
     llo, lhi = math.log10(lo), math.log10(hi)
     span = max(lhi - llo, 1e-12)
@@ -134,11 +139,38 @@ def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     return fig, list(axes.flat)[:n]
 
 
+def _ran_sizes(s, activity):
+    """The training sizes with results for ``activity`` in the summary ``s`` (any protocol)."""
+    return {int(n) for n in s.loc[s["activity"] == activity, "n_train"]}
+
+
+def paper_points_not_drawn(df, paper, *, source, methods, labels, n_train=None):
+    """The paper's points Fig. 1 leaves out: ``{activity label: [N, ...]}`` of the sizes that the study
+    configures and the paper reports for an activity of ``source`` (for a method drawn), but that the study
+    did not run for that activity (a cell skipped because too few test frames would remain), in activity order.
+
+    Arguments as :func:`plot_error_vs_ntrain`; ``paper`` from
+    :func:`bsrbench.reporting.tables.read_paper_tables`.
+    """
+    s = summarize(df[df["source"] == source])
+    sizes = {int(n) for n in (n_train if n_train is not None else df["n_train"].unique())}
+    drawn = {labels.get(m, m) for m in methods}
+    out = {}
+    for act in dict.fromkeys(df.loc[df["source"] == source, "activity"]):
+        pa = s.loc[s["activity"] == act, "paper_activity"].iloc[0]
+        pp = paper[(paper["key"] == paper_key(pa)) & paper["method"].isin(drawn)]
+        left = sorted({int(n) for n in pp["n_train"]} & sizes - _ran_sizes(s, act))
+        if left:
+            out[activity_label(act, pa)] = left
+    return out
+
+
 def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``.
 
     Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
-    dodged sideways), the paper's values at the studied sizes as open markers on dotted lines, the
+    dodged sideways), the paper's values as open markers on dotted lines at the sizes the study ran for that
+    activity (none at a size skipped for it: :func:`paper_points_not_drawn` names those, for the caption), the
     contiguous protocol (if run) dashed. The legend is outside the panels and names only the protocols run.
     """
     from matplotlib.lines import Line2D
@@ -152,6 +184,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     shown_paper = False
     for ax, act in zip(axes, acts):
         pa = s.loc[s["activity"] == act, "paper_activity"].iloc[0]
+        ran = _ran_sizes(s, act)  # the paper's points only where this study has one to compare with
         for i, m in enumerate(methods):
             c, mk = colors[i % len(colors)], _MARKERS[i % len(_MARKERS)]
             dodge = 1.0 + 0.018 * (i - (len(methods) - 1) / 2)
@@ -162,7 +195,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
                 ax.errorbar(d["n_train"] * dodge, d["mean"], yerr=d["std"].fillna(0), color=c, ls=ls, marker=mk,
                             ms=3.5, capsize=1.5, lw=1)
             pp = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == labels.get(m, m))
-                       & paper["n_train"].isin(sizes)].sort_values("n_train")
+                       & paper["n_train"].isin(sorted(ran))].sort_values("n_train")
             if not pp.empty:
                 shown_paper = True
                 ax.plot(pp["n_train"] * dodge, pp["mean_deg"], ls=":", lw=0.9, color=c, marker=mk, mfc="white",

@@ -382,10 +382,13 @@ def missing_data_note(source, status):
 
     ``status``: {paper activity: studied activity id, or {"kind", "activity", "command", "missing"}} (the
     workflow's data_status; kinds as in :data:`NO_ROW`). Commands are set in typewriter type, one per line
-    and with ASCII hyphens, so that they can be copied.
+    and with ASCII hyphens, so that they can be copied. A table none of whose activities is studied on the
+    source is not shown (:func:`bsrbench.reporting.tables.tables_with_rows`); the note's first line says so.
     """
-    from .tables import PAPER_TABLES
+    from .tables import PAPER_TABLES, tables_with_rows
 
+    shown = tables_with_rows(status)
+    left_out = [t for t in PAPER_TABLES if t not in shown]
     by_kind = {}
     for names in PAPER_TABLES.values():
         for pa in names:
@@ -395,6 +398,14 @@ def missing_data_note(source, status):
     if not by_kind:
         return ""
     lines = []
+    if left_out:
+        names = _listing([nobreak(pa) for t in left_out for pa in PAPER_TABLES[t]])
+        one = len(left_out) == 1
+        lines.append(
+            ("Table " if one else "Tables ") + _listing(left_out) + f" ({names}) "
+            + ("is" if one else "are") + f" not shown for the {latex_escape(source)} data: this study has none of "
+            + ("its" if one else "their") + " activities on that source, so every row would be empty."
+        )
     for kind, items in by_kind.items():
         names = _listing([nobreak(pa) for pa, _ in items])
         if kind == "none":
@@ -420,7 +431,8 @@ def write_body(path, *, tables, figures, notes=None):
     """The fragment with the tables and figures (paths relative to the study's report folder, reports/{study}).
 
     ``tables``: paths of the table fragments (``table<T>_<source>.tex``); after the last table of a source
-    comes ``notes[source]`` (see :func:`missing_data_note`). ``figures``: (path, caption) pairs. Figures are
+    comes ``notes[source]`` (see :func:`missing_data_note`; after the last table for a source with none).
+    ``figures``: (path, caption) pairs. Figures are
     included at their natural size (``\fitgraphics`` of reports/report.tex): they are drawn at the size they
     are printed, with no font below 7 pt; one wider than the text is scaled down to it.
     """
@@ -433,6 +445,8 @@ def write_body(path, *, tables, figures, notes=None):
         last = k + 1 == len(tables) or sources[k + 1] != src
         if last and notes.get(src):
             lines.append(notes[src])
+    # the note of a source without any table (none of the paper's activities studied on it)
+    lines += [note for src, note in notes.items() if note and src not in sources]
     lines += [r"\clearpage", r"\section{Figures}"]
     for f, caption in figures:
         f = Path(f)
@@ -448,9 +462,30 @@ def write_body(path, *, tables, figures, notes=None):
         tmp.write_text("\n".join(lines) + "\n")
 
 
-def build_header(*, configfiles, when=None, root="."):
+def config_provenance(configfiles, overrides=()):
+    """LaTeX of the configuration a study ran with: the configuration files in the order they apply, then the
+    ``--config KEY=VALUE`` overrides of the command line (or of the profile), which apply last, as a shell would
+    take them (quoted where needed, in typewriter type with upright quotes and ASCII hyphens, so that the
+    command copied from the PDF runs).
+
+    ``configfiles``: paths; ``overrides``: the raw ``KEY=VALUE`` strings (Snakemake's
+    ``workflow.config_settings.config_args``).
+    """
+    import shlex
+
+    files = ", ".join(latex_escape(str(f)) for f in configfiles)
+    text = (files + " (in the order they apply)") if configfiles else "none"
+    overrides = [str(o) for o in overrides or ()]
+    if overrides:
+        command = shlex.join(["--config", *overrides])
+        typed = latex_escape(command).replace("-", "-{}").replace("'", r"\textquotesingle{}")
+        text += r", then \texttt{\frenchspacing " + typed + "}"  # no wider space after a colon
+    return text
+
+
+def build_header(*, configfiles, overrides=(), when=None, root="."):
     """LaTeX for the page-1 header: build date, git commit (and whether the tree has uncommitted changes),
-    configuration files and machine."""
+    configuration (files and ``--config`` overrides, :func:`config_provenance`) and machine."""
     import datetime
     import os
     import platform
@@ -479,10 +514,11 @@ def build_header(*, configfiles, when=None, root="."):
     rows = [
         ("Built", when.strftime("%Y-%m-%d %H:%M UTC")),
         ("Code", code),
-        ("Configuration", (", ".join(map(str, configfiles)) + " (in the order they apply)") if configfiles else "none"),
         ("Machine", machine),
     ]
-    body = "\n".join(rf"{k} & {latex_escape(v)} \\" for k, v in rows)
+    rows = [(k, latex_escape(v)) for k, v in rows]
+    rows.insert(2, ("Configuration", config_provenance(configfiles, overrides)))
+    body = "\n".join(rf"{k} & {v} \\" for k, v in rows)
     return (
         "\\begin{center}\\small\n\\begin{tabularx}{0.9\\linewidth}{@{}l>{\\raggedright\\arraybackslash}X@{}}\n"
         + body + "\n\\end{tabularx}\n\\end{center}\n"

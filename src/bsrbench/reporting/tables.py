@@ -26,6 +26,17 @@ PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
 
 
+def tables_with_rows(status):
+    """The paper's tables (``"I"``, ``"II"``, in order) that have a row of results on a data source: those with at
+    least one studied activity. A table none of whose activities is studied on a source would be a block of
+    "no data" rows; the report leaves it out and says so (:func:`bsrbench.reporting.report.missing_data_note`).
+
+    ``status``: {paper activity: studied activity id, or a dict saying why it has no row} (the workflow's
+    ``data_status``; a paper activity missing from it has no row).
+    """
+    return [t for t, names in PAPER_TABLES.items() if any(isinstance(status.get(pa), str) for pa in names)]
+
+
 def paper_key(name):
     """Case-insensitive key of a paper activity name (the paper writes "kick soccer ball" and "Run")."""
     return " ".join(str(name).lower().split()) if isinstance(name, str) and name.strip() else ""
@@ -131,13 +142,13 @@ def check_rows(df, *, path):
             raise DataFileError(path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}")
 
 
-def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
-    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
-
-    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
-    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``, and optionally ``skipped``:
-    [protocol, source, activity, n_train] cells not run because too few test frames remain). A table of another
-    configuration (say, one written before a method was added) must never be reported as this study's.
+def design_changes(df, design):
+    """How the jobs of the aggregate table ``df`` differ from the configured study ``design`` (see
+    :func:`check_design`): ``(missing, extra, differences)``, the number of configured jobs without a row, the
+    number of rows of jobs not configured, and one sentence per key column whose values differ ("n_train: the
+    table has [30, 100], the configuration [30, 60]"), or, when every value is there but a job is missing, the
+    first missing job. ``(0, 0, [])`` when ``df`` is exactly the configured study. ``df`` needs the key columns
+    only (:data:`KEY_COLUMNS`).
     """
     skipped = {(p, s, a, int(n)) for p, s, a, n in design.get("skipped", [])}
     wanted = {
@@ -154,7 +165,7 @@ def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
         for p, s, a, m, n, k in df[KEY_COLUMNS].itertuples(index=False, name=None)
     }
     if wanted == have:
-        return
+        return 0, 0, []
     differ = []
     for i, col in enumerate(KEY_COLUMNS):
         got = sorted({r[i] for r in have})
@@ -164,11 +175,40 @@ def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
     if not differ:
         missing = sorted(wanted - have)
         differ.append(f"e.g. no row for {dict(zip(KEY_COLUMNS, missing[0]))}" if missing else "")
+    return len(wanted - have), len(have - wanted), differ
+
+
+def study_of(path):
+    """The study name of an aggregate table at ``results/{study}/aggregate/results.csv``; None for another path."""
+    parts = Path(path).parts
+    if len(parts) >= 4 and parts[-4:-3] == ("results",) and parts[-2:] == ("aggregate", "results.csv"):
+        return parts[-3]
+    return None
+
+
+def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
+    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
+
+    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
+    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``, and optionally ``skipped``:
+    [protocol, source, activity, n_train] cells not run because too few test frames remain). A table of another
+    configuration (say, one written before a method was added) must never be reported as this study's. The
+    message names what differs (:func:`design_changes`) and what to do.
+    """
+    missing, extra, differ = design_changes(df, design)
+    if not (missing or extra):
+        return
+    study = study_of(path)
+    name = f"study {study!r}" if study else "the study"
+    folder = f"results/{study}/" if study else "the study's results folder"
     raise DataFileError(
         path,
-        f"does not match the configuration: {len(wanted - have)} configured job(s) without a row, "
-        f"{len(have - wanted)} row(s) of jobs not configured; " + "; ".join(differ)
-        + f". Expected exactly the configured study; rebuild it (snakemake {path})",
+        f"does not match the configuration: {missing} configured job(s) without a row, "
+        f"{extra} row(s) of jobs not configured; " + "; ".join(differ)
+        + f". Expected exactly the configured study: the design of {name} has changed since the table was "
+        f"written. Run the study first, with the same --configfile/--config options (Snakemake reruns what "
+        f"changed; add --forcerun aggregate if it finds nothing to do); or give the new design a study name of its "
+        f"own (--config study=NAME) to keep the old results as they are; or delete {folder} to start afresh",
     )
 
 
