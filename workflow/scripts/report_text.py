@@ -13,6 +13,8 @@ sm = snakemake  # noqa: F821
 root = Path(sm.output.body).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
 labels = dict(sm.params.labels)
 first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
+# the split drawn: the first seed of the study (config key seed_start; 0 in the paper protocol)
+seed0 = int(sm.config.get("seed_start", 0))
 df = read_results(sm.input.results, design=dict(sm.params.design))
 # the estimators' defaults: the parameter table shows every value a method ran with
 estimators = df.drop_duplicates("method")[["method", "estimator"]].itertuples(index=False)
@@ -43,7 +45,7 @@ def caption(kind, source):
     if kind == "subjective" and kinds == ["authors"]:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
-            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). These "
+            f"one test frame (largest $N$, seed {seed0}; the test frame with the median error of {first}). These "
             "precomputed features come without images, so the first panel shows the input shape-context "
             "histogram; then the true pose and each method's predicted pose (in colour, over the true pose in "
             "grey) as 3-D stick figures of the authors' 19-joint skeleton from one oblique viewpoint (their "
@@ -53,14 +55,14 @@ def caption(kind, source):
     if kind == "subjective" and "None" not in kinds:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
-            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). From the "
+            f"one test frame (largest $N$, seed {seed0}; the test frame with the median error of {first}). From the "
             "left: the rendered silhouette (the input), the true pose, and each method's predicted pose (in "
             "colour, over the true pose in grey), as 3-D stick figures from one oblique viewpoint (forward "
             "kinematics of the trial's skeleton); in brackets the method's error on this frame."
         )
     if kind == "subjective":
         return (
-            f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed 0; "
+            f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed {seed0}; "
             f"the test frame with the median error of {first}). These features come with joint angles in a "
             "skeleton convention that is not configured (data set key pose\_convention), so no stick figure is drawn: "
             "left the input shape-context histogram, right the true and predicted joint angles; in brackets "
