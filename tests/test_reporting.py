@@ -351,9 +351,10 @@ def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown)
     plt.close(fig)
 
 
-@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous")])
+@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous"), ("cross_trial",)])
 def test_error_figure_legend_names_only_the_protocols_run(protocols):
-    """Before: the legend always had "this study (random)", also for a contiguous-only study."""
+    """Before: the legend always had "this study (random)", also for a contiguous-only study; a cross-trial
+    study's Fig. 1 drew no line at all."""
     import matplotlib.pyplot as plt
 
     from bsrbench.reporting.plots import plot_error_vs_ntrain
@@ -362,8 +363,10 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
     names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     assert [n for n in names if n.startswith("this study")] == [f"this study ({p})" for p in
-                                                                  ("random", "contiguous") if p in protocols]
+                                                                  ("random", "contiguous", "cross_trial") if p in protocols]
     assert "PM" in names and "the paper" in names
+    styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {":", "None"}  # the paper dotted; caps
+    assert styles == {{"random": "-", "contiguous": "--", "cross_trial": "-."}[p] for p in protocols}
     plt.close(fig)
 
 

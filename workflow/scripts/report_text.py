@@ -6,7 +6,8 @@ from pathlib import Path
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
 from bsrbench.reporting.report import missing_data_note, write_body, write_generated  # noqa: E402
-from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E402
+from bsrbench.reporting.plots import PROTOCOL_LINE_NAMES, PROTOCOL_LINESTYLES  # noqa: E402
+from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results  # noqa: E402
 from bsrbench.study import estimator_defaults  # noqa: E402
 
 sm = snakemake  # noqa: F821
@@ -25,11 +26,11 @@ defaults = {m: estimator_defaults(e) for m, e in estimators}
 _protocols = sorted(set(df["protocol"]))
 calibration_protocol = (
     "random protocol" if "random" in _protocols or not _protocols
-    else f"{_protocols[0]} protocol, as named in the panel titles; this study did not run the random one"
+    else f"{latex_escape(_protocols[0])} protocol, as named in the panel titles; this study did not run the random one"
 )
-# Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one
-study_lines = "; ".join(f"{ls} lines: {p} protocol" for p, ls in (("random", "solid"), ("contiguous", "dashed"))
-                        if p in _protocols)
+# Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one, ...
+study_lines = "; ".join(f"{PROTOCOL_LINE_NAMES[ls]} lines: {latex_escape(p.replace('_', '-'))} protocol"
+                        for p, ls in PROTOCOL_LINESTYLES.items() if p in _protocols)
 
 
 def caption(kind, source):
