@@ -34,6 +34,20 @@ def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
     assert "seed100" in out and "seed0." not in out  # splits disjoint from the paper protocol's seeds 0-9
 
 
+@pytest.mark.slow  # a DAG of about 1,800 jobs
+def test_goal_overlay_runs_the_chosen_variants_on_the_paper_protocols_splits(tmp_path):
+    """config/paper-goal.yaml tests variants chosen on seeds 100-104 on the paper protocol's seeds 0-9."""
+    res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", "config/paper-goal.yaml",
+              cwd=copy_tree(tmp_path))
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
+    splits = 4 * 4 * 10  # hsc activities x N x seeds
+    assert int(counts["fit_chain"]) == 2 * 4 * splits and int(counts["pool_chains"]) == 2 * splits
+    assert int(counts["fit"]) == splits  # 1-NN
+    assert "results/paper-goal/fit/random/hsc/" in out and "seed9" in out and "seed100" not in out
+
+
 @pytest.fixture(scope="module")
 def ablation_run(tmp_path_factory):
     work = copy_tree(tmp_path_factory.mktemp("ablation"))

@@ -166,6 +166,36 @@ def test_sentences_count_the_cells_where_a_variant_beats_1nn():
     assert "three quarters of their cells: PMK16." in text
 
 
+def test_goal_table_counts_converged_cells_below_1nn_and_flags_inexact_variants():
+    df = _aggregate()
+    # PMK16 converges in every split at N = 30 only; PM (1.3) nowhere
+    df.loc[(df["method"] == "PMK16") & (df["n_train"] == 30), ["r_hat_log_likelihood", "r_hat_g_xy"]] = 1.02
+    # an inexact variant: lowest error and converged everywhere, but the paper's printed ratio
+    lit = df[df["method"] == "PMK16"].copy()
+    lit["method"], lit["error"] = "PMprinted", lit["error"] - 3.0
+    lit[["r_hat_log_likelihood", "r_hat_g_xy"]] = 1.0
+    lit["params"] = '{"n_atoms": 64, "w_update": "paper-printed-ratio"}'
+    df = pd.concat([df, lit], ignore_index=True)
+    df["params"] = df["params"].fillna('{"n_atoms": 64}')
+    t = conv.goal_table(df, variants=["PM", "PMK16", "PMprinted"]).set_index("method")
+    assert t.at["PMK16", "exact"] and not t.at["PMprinted", "exact"] and t.at["PM", "exact"]
+    assert t.at["PMK16", "cells"] == 2 and t.at["PMK16", "converged"] == 1
+    assert t.at["PMK16", "beats_nn"] == 2 and t.at["PMK16", "both"] == 1
+    assert t.at["PM", "converged"] == 0 and t.at["PM", "beats_nn"] == 0 and t.at["PM", "both"] == 0
+    assert t.at["PMprinted", "both"] == 2 and t.at["PMprinted", "mean_rank"] == 1.0
+    # exact variants first, then by cells with both: the inexact one never heads the table
+    assert list(conv.goal_table(df, variants=["PM", "PMK16", "PMprinted"])["method"]) == ["PMK16", "PM", "PMprinted"]
+    text = conv.goal_sentence(df, variants=["PM", "PMK16", "PMprinted"], labels={"NN1": "1-NN"})
+    assert "closest to the goal is PMK16" in text and "in 1 of 2 cells" in text and "does not meet" in text
+    tex = conv.goal_latex(df, variants=["PM", "PMK16", "PMprinted"], labels={"NN1": "1-NN"})
+    assert "PMprinted & no & 2 & 2 & 2 & 2 & 1.0" in tex and "PMK16 & yes & 2 & 1 & 2 & 1" in tex
+    # the sentence of variants that converge and beat 1-NN leaves out inexact ones
+    text = " ".join(conv.why_pm_sentences(df, _paper(), variants=["PM", "PMK16", "PMprinted"], labels={}))
+    assert "three quarters of their cells: none." in text
+    df.loc[df["method"] == "PMK16", ["r_hat_log_likelihood", "r_hat_g_xy"]] = 1.0
+    assert "meets the goal" in conv.goal_sentence(df, variants=["PM", "PMK16"], labels={})
+
+
 def test_pm_against_the_paper_is_like_for_like_or_not_at_all():
     """Before: contiguous-protocol errors were set against the paper's random-frame numbers, with medians over
     hsc and mocap together."""

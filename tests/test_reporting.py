@@ -15,6 +15,7 @@ from bsrbench.reporting.report import (
     missing_data_note,
     parameters_table,
     parameters_used,
+    write_generated,
 )
 from bsrbench.reporting.tables import (
     PAPER_TABLES,
@@ -207,6 +208,28 @@ def test_findings_for_all_and_for_none():
     text = "\n".join(findings(worse, None, labels=LABELS))
     assert "than RVM for no activity: not for \\mbox{Golf (hsc)}, the only activity studied" in text
     assert "for the activity studied" not in text
+
+
+def test_findings_cover_every_protocol_run_and_the_section_is_never_an_empty_list(tmp_path):
+    """Before: only the random and contiguous protocols had findings, so a cross-trial study got an empty
+    itemize and LaTeX stopped ("perhaps a missing \\item"); the setup said CV used seed 0 when the study's
+    splits start at seed 100."""
+    rows = _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("golf", "NN1"): [7.0, 7.5]})
+    for r in rows:
+        r.update(protocol="cross_trial", seed=r["seed"] + 100, cv="per_size")
+    df = aggregate_rows(rows)
+    text = "\n".join(findings(df, None, labels=LABELS))
+    assert "Cross-trial protocol, summary" in text and "At $N=30$ (cross-trial protocol), PM" in text
+    assert "_" not in text.replace(r"\_", "")
+    out = tmp_path / "body.tex"
+    write_generated(out, df, None, labels=LABELS)
+    tex = out.read_text()
+    assert "on the training frames of seed 100 (the study's first)" in tex and "seed 0" not in tex
+    only_pm = aggregate_rows([r for r in rows if r["method"] == "PM"])
+    assert findings(only_pm, None, labels=LABELS) == []
+    write_generated(out, only_pm, None, labels=LABELS)
+    body = out.read_text().split(r"\section{Findings}")[1]
+    assert body.count(r"\item ") == 1 and "No sentence applies" in body
 
 
 DESIGN = {"protocols": ["random"], "pairs": [["hsc", "golf"]], "methods": ["PM", "RVM"], "n_train": [30],
@@ -403,9 +426,10 @@ def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown)
     plt.close(fig)
 
 
-@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous")])
+@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous"), ("cross_trial",)])
 def test_error_figure_legend_names_only_the_protocols_run(protocols):
-    """Before: the legend always had "this study (random)", also for a contiguous-only study."""
+    """Before: the legend always had "this study (random)", also for a contiguous-only study; a cross-trial
+    study's Fig. 1 drew no line at all."""
     import matplotlib.pyplot as plt
 
     from bsrbench.reporting.plots import plot_error_vs_ntrain
@@ -414,8 +438,10 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
     names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     assert [n for n in names if n.startswith("this study")] == [f"this study ({p})" for p in
-                                                                  ("random", "contiguous") if p in protocols]
+                                                                  ("random", "contiguous", "cross_trial") if p in protocols]
     assert "PM" in names and "the paper" in names
+    styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {":", "None"}  # the paper dotted; caps
+    assert styles == {{"random": "-", "contiguous": "--", "cross_trial": "-."}[p] for p in protocols}
     plt.close(fig)
 
 

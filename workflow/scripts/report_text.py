@@ -5,7 +5,7 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
-from bsrbench.reporting.plots import paper_points_not_drawn  # noqa: E402
+from bsrbench.reporting.plots import PROTOCOL_LINE_NAMES, PROTOCOL_LINESTYLES, paper_points_not_drawn  # noqa: E402
 from bsrbench.reporting.report import missing_data_note, write_body, write_generated  # noqa: E402
 from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results  # noqa: E402
 from bsrbench.study import estimator_defaults  # noqa: E402
@@ -14,6 +14,8 @@ sm = snakemake  # noqa: F821
 root = Path(sm.output.body).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
 labels = dict(sm.params.labels)
 first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
+# the split drawn: the first seed of the study (config key seed_start; 0 in the paper protocol)
+seed0 = int(sm.config.get("seed_start", 0))
 df = read_results(sm.input.results, design=dict(sm.params.design))
 paper = read_paper_tables(sm.input.paper)
 # the estimators' defaults: the parameter table shows every value a method ran with
@@ -25,11 +27,11 @@ defaults = {m: estimator_defaults(e) for m, e in estimators}
 _protocols = sorted(set(df["protocol"]))
 calibration_protocol = (
     "random protocol" if "random" in _protocols or not _protocols
-    else f"{_protocols[0]} protocol, as named in the panel titles; this study did not run the random one"
+    else f"{latex_escape(_protocols[0])} protocol, as named in the panel titles; this study did not run the random one"
 )
-# Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one
-study_lines = "; ".join(f"{ls} lines: {p} protocol" for p, ls in (("random", "solid"), ("contiguous", "dashed"))
-                        if p in _protocols)
+# Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one, ...
+study_lines = "; ".join(f"{PROTOCOL_LINE_NAMES[ls]} lines: {latex_escape(p.replace('_', '-'))} protocol"
+                        for p, ls in PROTOCOL_LINESTYLES.items() if p in _protocols)
 
 
 def not_drawn(source):
@@ -58,7 +60,7 @@ def caption(kind, source):
     if kind == "subjective" and kinds == ["authors"]:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
-            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). These "
+            f"one test frame (largest $N$, seed {seed0}; the test frame with the median error of {first}). These "
             "precomputed features come without images, so the first panel shows the input shape-context "
             "histogram; then the true pose and each method's predicted pose (in colour, over the true pose in "
             "grey) as 3-D stick figures of the authors' 19-joint skeleton from one oblique viewpoint (their "
@@ -68,14 +70,14 @@ def caption(kind, source):
     if kind == "subjective" and "None" not in kinds:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "
-            f"one test frame (largest $N$, seed 0; the test frame with the median error of {first}). From the "
+            f"one test frame (largest $N$, seed {seed0}; the test frame with the median error of {first}). From the "
             "left: the rendered silhouette (the input), the true pose, and each method's predicted pose (in "
             "colour, over the true pose in grey), as 3-D stick figures from one oblique viewpoint (forward "
             "kinematics of the trial's skeleton); in brackets the method's error on this frame."
         )
     if kind == "subjective":
         return (
-            f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed 0; "
+            f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed {seed0}; "
             f"the test frame with the median error of {first}). These features come with joint angles in a "
             "skeleton convention that is not configured (data set key pose\_convention), so no stick figure is drawn: "
             "left the input shape-context histogram, right the true and predicted joint angles; in brackets "

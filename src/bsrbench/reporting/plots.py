@@ -139,6 +139,7 @@ def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     return fig, list(axes.flat)[:n]
 
 
+<<<<<<< HEAD
 def _ran_sizes(s, activity):
     """The training sizes with results for ``activity`` in the summary ``s`` (any protocol)."""
     return {int(n) for n in s.loc[s["activity"] == activity, "n_train"]}
@@ -163,15 +164,26 @@ def paper_points_not_drawn(df, paper, *, source, methods, labels, n_train=None):
         if left:
             out[activity_label(act, pa)] = left
     return out
+=======
+#: Fig. 1's line style of each protocol (matplotlib ``ls``) and its name in the caption.
+PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "cross_trial": "-."}
+PROTOCOL_LINE_NAMES = {"-": "solid", "--": "dashed", "-.": "dash-dotted"}
+>>>>>>> goal-table
 
 
 def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``.
 
     Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
+<<<<<<< HEAD
     dodged sideways), the paper's values as open markers on dotted lines at the sizes the study ran for that
     activity (none at a size skipped for it: :func:`paper_points_not_drawn` names those, for the caption), the
     contiguous protocol (if run) dashed. The legend is outside the panels and names only the protocols run.
+=======
+    dodged sideways), the paper's values at the studied sizes as open markers on dotted lines, the
+    contiguous protocol (if run) dashed, the cross-trial one dash-dotted (:data:`PROTOCOL_LINESTYLES`). The
+    legend is outside the panels and names only the protocols run.
+>>>>>>> goal-table
     """
     from matplotlib.lines import Line2D
 
@@ -180,7 +192,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     sizes = sorted(int(n) for n in (n_train if n_train is not None else df["n_train"].unique()))
     fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    protocols = [p for p in ("random", "contiguous") if p in set(s["protocol"])]
+    protocols = [p for p in PROTOCOL_LINESTYLES if p in set(s["protocol"])]
     shown_paper = False
     for ax, act in zip(axes, acts):
         pa = s.loc[s["activity"] == act, "paper_activity"].iloc[0]
@@ -188,7 +200,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
         for i, m in enumerate(methods):
             c, mk = colors[i % len(colors)], _MARKERS[i % len(_MARKERS)]
             dodge = 1.0 + 0.018 * (i - (len(methods) - 1) / 2)
-            for protocol, ls in (("random", "-"), ("contiguous", "--")):
+            for protocol, ls in PROTOCOL_LINESTYLES.items():
                 d = s[(s["activity"] == act) & (s["method"] == m) & (s["protocol"] == protocol)].sort_values("n_train")
                 if d.empty:
                     continue
@@ -213,7 +225,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     ]
     # only the protocols in the data (a contiguous-only study has no "random" line to explain)
     style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls=ls, label=f"this study ({protocol})")
-             for protocol, ls in (("random", "-"), ("contiguous", "--")) if protocol in protocols]
+             for protocol, ls in PROTOCOL_LINESTYLES.items() if protocol in protocols]
     if shown_paper:
         style.append(Line2D([], [], color="0.3", marker="o", mfc="white", ms=4.5, lw=0.9, ls=":", label="the paper"))
     fig.legend(handles=handles + style, loc="outside right upper", frameon=False)

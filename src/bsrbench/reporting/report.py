@@ -96,7 +96,8 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     baselines = [m for m in methods if labels.get(m, m) in PAPER_METHODS and m != pm]
     refs = [m for m in references if m in methods]
     L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
-    protocols = [p for p in ("random", "contiguous") if p in set(df["protocol"])]
+    order = ("random", "contiguous", "cross_trial")
+    protocols = [p for p in order if p in set(df["protocol"])] + sorted(set(df["protocol"]) - set(order))
     sources = list(dict.fromkeys(df["source"]))
     if pm not in methods:
         return [f"{latex_escape(pm)} was not run, so the paper's claims about it are not checked."]
@@ -107,7 +108,7 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
         f"{n_paper} (activity, $N$) rows. " if n_paper else ""
     )
     for protocol in protocols:
-        tag = f"{protocol.capitalize()} protocol"
+        tag = latex_escape(protocol.replace("_", "-").capitalize()) + " protocol"
         t = s[s["protocol"] == protocol].pivot_table(
             index=["source", "activity", "n_train"], columns="method", values="mean"
         )
@@ -129,7 +130,7 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
                 )
             out.append(text + ".")
     for protocol in protocols:
-        tag = "" if protocol == "random" else " (contiguous protocol)"
+        tag = "" if protocol == "random" else f" ({latex_escape(protocol.replace('_', '-'))} protocol)"
         for n in sizes:
             t = _pairs(s, protocol, n)
             if pm not in t.columns:
@@ -324,7 +325,7 @@ def setup_text(df, *, labels):
     methods = [latex_escape(labels.get(m, m)) for m in _methods(df, labels)]
     how = {
         "per_size": "chosen by cross-validation once per activity, method and $N$, on the training frames of "
-        "seed 0, and used for every seed",
+        f"seed {int(min(seeds))} (the study's first), and used for every seed",
         "per_job": "chosen by cross-validation on the training frames of each split",
         "none": "as configured (no cross-validation)",
     }
@@ -355,8 +356,10 @@ def write_generated(path, df, paper, *, labels, defaults=None, study=None):
                         f"\\nolinkurl{{{folder}/aggregate/results.csv}}).")
     body += [" ".join(lines), ""]
     body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
+    items = findings(df, paper, labels=labels) or [
+        "No sentence applies to what was run (the findings compare PM with the paper's baselines and references)."]
     body += [r"\section{Findings}", r"\begin{itemize}"]
-    body += [r"\item " + f for f in findings(df, paper, labels=labels)]
+    body += [r"\item " + f for f in items]
     body += [r"\end{itemize}", ""]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(body))
