@@ -551,6 +551,31 @@ def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
     plt.close(fig)
 
 
+def test_stick_figure_titles_of_long_method_labels_stay_over_their_panel():
+    """Before: "PM K=16 5000 sw. text pred. (7.6 deg)" ran into the next panel's title (the paper-goal report)."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.authors import hsc_stick_figure
+    from bsrbench.reporting.plots import plot_subjective_sticks
+
+    rng = np.random.default_rng(1)
+    true, parents = hsc_stick_figure(rng.uniform(-40, 40, 57))
+    methods = ["PMK8", "PMK16s5000text", "NN1"]
+    labels = {"PMK8": "PM K=8", "PMK16s5000text": "PM K=16 5000 sw. text pred.", "NN1": "1-NN"}
+    pnl = {"label": "Golf", "frame": 7, "x": rng.random(100), "parents": parents, "true": true,
+           "preds": {m: hsc_stick_figure(rng.uniform(-40, 40, 57))[0] for m in methods},
+           "errors": {m: 7.6 for m in methods}}
+    fig = plot_subjective_sticks([pnl], labels=labels)
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    titles = [ax.title for ax in fig.axes[1:5]]
+    assert titles[2].get_text().replace("\n", " ") == "PM K=16 5000 sw. text pred. (7.6 deg)"
+    boxes = [t.get_window_extent(r) for t in titles]
+    for left, right in zip(boxes, boxes[1:]):
+        assert left.x1 < right.x0, (left, right)  # no title overlaps its neighbour
+    plt.close(fig)
+
+
 @pytest.mark.parametrize(
     "damage, message",
     [

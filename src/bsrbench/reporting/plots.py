@@ -14,6 +14,7 @@ it unscaled), so the font sizes below are printed sizes, none under :data:`MIN_F
 """
 
 import math
+import textwrap
 
 import matplotlib
 
@@ -139,7 +140,6 @@ def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     return fig, list(axes.flat)[:n]
 
 
-<<<<<<< HEAD
 def _ran_sizes(s, activity):
     """The training sizes with results for ``activity`` in the summary ``s`` (any protocol)."""
     return {int(n) for n in s.loc[s["activity"] == activity, "n_train"]}
@@ -164,26 +164,21 @@ def paper_points_not_drawn(df, paper, *, source, methods, labels, n_train=None):
         if left:
             out[activity_label(act, pa)] = left
     return out
-=======
+
+
 #: Fig. 1's line style of each protocol (matplotlib ``ls``) and its name in the caption.
 PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "cross_trial": "-."}
 PROTOCOL_LINE_NAMES = {"-": "solid", "--": "dashed", "-.": "dash-dotted"}
->>>>>>> goal-table
 
 
 def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``.
 
     Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
-<<<<<<< HEAD
     dodged sideways), the paper's values as open markers on dotted lines at the sizes the study ran for that
     activity (none at a size skipped for it: :func:`paper_points_not_drawn` names those, for the caption), the
-    contiguous protocol (if run) dashed. The legend is outside the panels and names only the protocols run.
-=======
-    dodged sideways), the paper's values at the studied sizes as open markers on dotted lines, the
     contiguous protocol (if run) dashed, the cross-trial one dash-dotted (:data:`PROTOCOL_LINESTYLES`). The
     legend is outside the panels and names only the protocols run.
->>>>>>> goal-table
     """
     from matplotlib.lines import Line2D
 
@@ -421,8 +416,12 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
         allxy = np.concatenate(list(view.values()))
         lo, hi = allxy.min(axis=0), allxy.max(axis=0)
         pad = 0.05 * float((hi - lo).max())
+        # a method's title wrapped to its panel's width (about 13 characters per inch at the title's size), so
+        # long variant labels do not run into the neighbouring panel's
+        chars = max(10, int(13 * TEXT_WIDTH / ncol))
         figs = [("true pose", "true", "k")] + [
-            (f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", m, f"C{i}") for i, m in enumerate(pnl["preds"])
+            (textwrap.fill(f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)", chars), m, f"C{i}")
+            for i, m in enumerate(pnl["preds"])
         ]
         for ax, (title, key, color) in zip(axrow[1:], figs):
             if key != "true":
