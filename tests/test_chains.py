@@ -194,6 +194,13 @@ def test_goal_table_counts_converged_cells_below_1nn_and_flags_inexact_variants(
     assert "three quarters of their cells: none." in text
     df.loc[df["method"] == "PMK16", ["r_hat_log_likelihood", "r_hat_g_xy"]] = 1.0
     assert "meets the goal" in conv.goal_sentence(df, variants=["PM", "PMK16"], labels={})
+    # one chain per split (the quick study): no R-hat, so no goal table, not "converged in 0 of 2 cells"
+    one = df.copy()
+    one.loc[one["method"] == "PM", ["n_chains", "r_hat_log_likelihood", "r_hat_g_xy"]] = [1, np.nan, np.nan]
+    assert list(conv.goal_table(one, variants=["PM", "PMK16"])["method"]) == ["PMK16"]
+    one.loc[one["method"] == "PMK16", ["n_chains", "r_hat_log_likelihood", "r_hat_g_xy"]] = [1, np.nan, np.nan]
+    assert conv.goal_table(one, variants=["PM", "PMK16"]).empty
+    assert "The goal" not in conv.why_pm_section(one, _paper(), variants=["PM", "PMK16"], labels={}, figures=[])
 
 
 def test_pm_against_the_paper_is_like_for_like_or_not_at_all():

@@ -163,14 +163,17 @@ def _is_exact(params):
 
 
 def goal_table(df, *, variants, nn="NN1"):
-    """The issue's goal per (protocol, variant): is it exact, in how many (source, activity, N) cells did every
-    split converge (:data:`RHAT_OK` on the log-likelihood and g_xy, several chains), in how many is its mean
+    """The issue's goal per (protocol, variant run with several chains): is it exact, in how many (source,
+    activity, N) cells did every split converge (:data:`RHAT_OK` on the log-likelihood and g_xy, several chains), in how many is its mean
     error below 1-NN's, and in how many both. Sorted by protocol, then by cells with both (descending), then
     by the variant's mean rank of error among the variants over the cells. Empty DataFrame if no variant ran.
 
     Columns: protocol, method, exact, cells, converged, beats_nn, both, mean_rank.
     """
     df = with_convergence_columns(df)
+    # only variants run with several chains: with one chain there is no R-hat, so convergence is not measured
+    chained = set(df.loc[df["n_chains"].fillna(1) > 1, "method"])
+    variants = [v for v in variants if v in chained]
     s = summarize(df)
     s = s[s["method"].isin(variants)]
     if s.empty:
