@@ -221,10 +221,10 @@ def goal_sentence(df, *, variants, labels, nn="NN1"):
         need = math.ceil(0.75 * int(top["cells"]))
         verdict = "meets" if int(top["both"]) >= need else "does not meet"
         out.append(
-            f"Protocol ``{latex_escape(protocol)}'': the exact variant closest to the goal is {L(top['method'])}, "
-            f"converged in every split and below {L(nn)} in {int(top['both'])} of {int(top['cells'])} cells "
-            f"(converged in {int(top['converged'])}, below {L(nn)} in {int(top['beats_nn'])}); it {verdict} the "
-            f"goal of at least {need} (three quarters)."
+            f"Protocol ``{latex_escape(protocol)}'': the exact variant closest to the goal is {L(top['method'])}. "
+            f"It has every split converged and a mean error below {L(nn)}'s in {int(top['both'])} of "
+            f"{int(top['cells'])} cells (every split converged in {int(top['converged'])}, below {L(nn)} in "
+            f"{int(top['beats_nn'])}), so it {verdict} the goal of at least {need} cells (three quarters)."
         )
     return " ".join(out)
 
