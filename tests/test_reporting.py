@@ -210,6 +210,15 @@ def test_findings_for_all_and_for_none():
     assert "for the activity studied" not in text
 
 
+def test_findings_without_a_method_named_pm_point_to_the_variants():
+    rows = _rows({("golf", "PMK8"): [8.0, 9.0], ("golf", "NN1"): [7.0, 7.5]})
+    text = findings(aggregate_rows(rows), None, labels={"PMK8": "PM K=8", "NN1": "1-NN"})
+    assert text == ["No method named PM was run, so the paper's claims about it are not checked here; the PM "
+                    "variants run (PM K=8) are compared in the section ``Why PM trails the paper here''."]
+    text = findings(aggregate_rows(_rows({("golf", "NN1"): [7.0, 7.5]})), None, labels=LABELS)
+    assert text == ["No method named PM was run, so the paper's claims about it are not checked here."]
+
+
 def test_findings_cover_every_protocol_run_and_the_section_is_never_an_empty_list(tmp_path):
     """Before: only the random and contiguous protocols had findings, so a cross-trial study got an empty
     itemize and LaTeX stopped ("perhaps a missing \\item"); the setup said CV used seed 0 when the study's

@@ -100,7 +100,10 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     protocols = [p for p in order if p in set(df["protocol"])] + sorted(set(df["protocol"]) - set(order))
     sources = list(dict.fromkeys(df["source"]))
     if pm not in methods:
-        return [f"{latex_escape(pm)} was not run, so the paper's claims about it are not checked."]
+        variants = [m for m in methods if m.startswith(pm)]
+        return [f"No method named {latex_escape(pm)} was run, so the paper's claims about it are not checked here"
+                + (f"; the PM variants run ({', '.join(L(m) for m in variants)}) are compared in the section "
+                   "``Why PM trails the paper here''." if variants else ".")]
     sizes = sorted(df["n_train"].unique())
     k_paper, n_paper = paper_pm_count(paper, pm)
     in_paper = (
