@@ -442,6 +442,22 @@ def test_a_design_changed_under_the_same_study_name_is_named_at_the_start(ci_run
     assert same.returncode == 0 and "the configuration differs" not in same.stdout + same.stderr
 
 
+def test_a_changed_method_setting_reruns_its_fits_and_cv(ci_run):
+    """Before: the fit rules passed their settings only inside params.job, which depends on input and output, and
+    Snakemake's params trigger ignores such params: --config methods='{PM: {params: {n_iter: 60}}}' reran no fit,
+    left the results of n_iter = 40, and page 1 of the rebuilt report named the override."""
+    before = _snapshot(ci_run)
+    res = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config",
+              "methods={PM: {params: {n_iter: 60}}}", cwd=ci_run)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
+    pm_jobs = set(re.findall(r"output: results/ci/(?:fit|cv)/\S+/(\w+)/n\d+/seed\d+\.(?:npz|json)", out))
+    assert int(counts.get("fit", 0)) >= 1 and pm_jobs == {"PM"}, out[-3000:]  # PM's jobs only
+    assert "Params have changed since last execution" in out and "'n_iter': 60" in out
+    assert _snapshot(ci_run) == before  # (test_ci_rerun_is_a_no_op: the unchanged configuration reruns nothing)
+
+
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
     from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes

@@ -4,6 +4,10 @@
 # wildcards and the *_PARAMS below, evaluated) to bsrbench.jobserver, which runs it in a fork of a warm Python process
 # (config key job_server) or in the command's own process. Shell rather than script: a script job would spend ~0.25 s
 # importing Snakemake.
+#
+# The *_PARAMS are also given as plain params, which the job does not read: Snakemake's params trigger records only
+# params that do not depend on input or output ("non-derived"), and params.job does, so without them a changed method
+# setting (e.g. --config methods='{PM: {params: {n_iter: 60}}}') would rerun no fit and leave stale results.
 
 JOB = "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}}"
 
@@ -46,6 +50,7 @@ rule cv:
     benchmark:
         f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
+        **CV_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
         job=jobserver.job_params(CV_PARAMS),
     threads: 1
     conda:
@@ -70,6 +75,7 @@ rule fit:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
     params:
+        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
         job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=False),
@@ -97,6 +103,7 @@ rule fit_chain:
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
     params:
+        **CHAIN_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
         job=jobserver.job_params(CHAIN_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
@@ -121,6 +128,7 @@ rule pool_chains:
     log:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     params:
+        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
         job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
