@@ -13,7 +13,7 @@ from bsrbench.study import estimator_defaults  # noqa: E402
 sm = snakemake  # noqa: F821
 root = Path(sm.output.body).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
 labels = dict(sm.params.labels)
-first = labels.get(sm.params.subjective_first, sm.params.subjective_first)
+first = latex_escape(labels.get(sm.params.subjective_first, sm.params.subjective_first))  # in captions
 # the split drawn: the first seed of the study (config key seed_start; 0 in the paper protocol)
 seed0 = int(sm.config.get("seed_start", 0))
 df = read_results(sm.input.results, design=dict(sm.params.design))
