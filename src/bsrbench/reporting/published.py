@@ -169,6 +169,10 @@ def update_readme(path, tables):
         raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
 
 
+#: The study whose published table the README's results tables show (``readme --update`` refuses any other).
+README_STUDY = "paper"
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m bsrbench.reporting.published", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -188,6 +192,13 @@ def main(argv=None):
             df = publish(args.src, args.dest, study=args.study)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
             return 0
+        if args.update and (Path(args.table).stem != README_STUDY or args.protocol != "random"):
+            # the README's tables are those of the paper protocol: another study's table would replace them
+            raise InputError(
+                f"{args.table} --protocol {args.protocol}: --update writes the README's results tables, which are "
+                f"the paper protocol's (reports/published/{README_STUDY}.csv, --protocol random); print this "
+                "table's tables without --update"
+            )
         tables = readme_tables(read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol)
         if args.update:
             update_readme(args.update, tables)
