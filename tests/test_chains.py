@@ -321,3 +321,23 @@ def test_log_trace_axes_are_labelled_across_their_range():
             if hi > 12:
                 assert max(ticks) > 10, ticks
         plt.close(fig)
+
+
+def test_a_damaged_job_npz_names_the_file_and_what_to_do(tmp_path):
+    """Before: a truncated chain or prediction file ended pool_chains / plot_subjective in a bare
+    zipfile.BadZipFile naming no file."""
+    from bsrbench.errors import DataFileError
+    from bsrbench.io import read_npz
+
+    good = tmp_path / "chain0.npz"
+    np.savez(good, trace_g_xy=np.arange(3.0), y_pred=np.zeros((2, 2)))
+    assert set(read_npz(good)) == {"trace_g_xy", "y_pred"}
+    truncated = tmp_path / "chain1.npz"
+    truncated.write_bytes(good.read_bytes()[:40])
+    text = tmp_path / "chain2.npz"
+    text.write_text("not an archive")
+    for bad in (truncated, text):
+        with pytest.raises(DataFileError, match=rf"{bad.name}.*cannot read as \.npz.*delete it and rerun"):
+            read_npz(bad)
+    with pytest.raises(DataFileError, match=r"chain0\.npz.*missing array\(s\) \['test'\]"):
+        read_npz(good, ("test", "y_pred"))

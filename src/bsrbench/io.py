@@ -3,7 +3,10 @@
 import contextlib
 import os
 import tempfile
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 
 def _umask():
@@ -30,3 +33,25 @@ def atomic_path(path):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def read_npz(path, keys=None):
+    """All arrays (or ``keys``) of a job's ``.npz`` output as a dict of arrays, without pickles.
+
+    Raises ``DataFileError`` naming the file (unreadable, truncated, not an .npz, or without one of ``keys``),
+    with what to do: delete it and rerun, so that Snakemake rebuilds it.
+    """
+    from .errors import DataFileError
+
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            names = f.files if keys is None else list(keys)
+            missing = [k for k in names if k not in f.files]
+            if missing:
+                raise DataFileError(path, f"missing array(s) {missing}; it has {sorted(f.files)}; delete it and "
+                                          "rerun to rebuild it")
+            return {k: f[k] for k in names}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataFileError(
+            path, f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it"
+        ) from exc

@@ -80,21 +80,13 @@ def fit_chain(job):
 
 def pool(job):
     """Rule pool_chains: the result row and predictions of a split from its chain files."""
-    import numpy as np
-
-    from .errors import DataFileError
+    from .io import read_npz
     from .study import JobSpec, load_features, pool_chains, write_arrays, write_json
 
     w, p, inp, out = _ns(job["wildcards"]), _ns(job["params"]), job["input"], job["output"]
     spec = JobSpec.from_wildcards(w, p)
     params, cv_seconds = _params(inp, p)
-    chains = []
-    for path in inp["chains"]:
-        try:
-            with np.load(path, allow_pickle=False) as f:
-                chains.append({k: f[k] for k in f.files})
-        except (OSError, ValueError) as exc:
-            raise DataFileError(path, f"cannot read the chain file ({exc})") from exc
+    chains = [read_npz(path) for path in inp["chains"]]
     row, arrays = pool_chains(spec, load_features(inp["features"]), chains, estimator=p.estimator,
                               params=params, cv_mode=p.cv_mode, cv_seconds=cv_seconds)
     write_arrays(out["predictions"], arrays)

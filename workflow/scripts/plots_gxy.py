@@ -4,10 +4,9 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
+from bsrbench.io import read_npz  # noqa: E402
 from bsrbench.reporting.convergence import gxy_panel, plot_gxy  # noqa: E402
 from bsrbench.reporting.plots import save  # noqa: E402
 from bsrbench.reporting.tables import read_results  # noqa: E402
@@ -26,6 +25,5 @@ for p in sm.input.predictions:
     title = f"{labels.get(method, method)}: K={k} {rel} N={n[1:]}"
     if prior is not None:
         title += f"\nGamma({prior[0]:g}, {prior[1]:g}) prior"
-    with np.load(path) as f:
-        items.append((title, {key: f[key] for key in f.files}))
+    items.append((title, read_npz(path)))
 save(plot_gxy(items), [sm.output.pdf, sm.output.png])

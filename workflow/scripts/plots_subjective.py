@@ -14,6 +14,7 @@ import numpy as np
 
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
+from bsrbench.io import read_npz  # noqa: E402
 from bsrbench.metrics import wrap_degrees  # noqa: E402
 from bsrbench.reporting.plots import (  # noqa: E402
     plot_subjective,
@@ -43,8 +44,7 @@ items = []
 for i, activity in enumerate(activities):
     preds = {}
     for j, m in enumerate(methods):
-        with np.load(sm.input.predictions[i * len(methods) + j]) as f:
-            preds[m] = {k: f[k] for k in ("test", "y_true", "y_pred")}
+        preds[m] = read_npz(sm.input.predictions[i * len(methods) + j], ("test", "y_true", "y_pred"))
     items.append((activity, dict(sm.params.labels_activity)[activity], load_features(sm.input.features[i]), preds))
 panels = subjective_panels(items, methods, frame_errors)
 

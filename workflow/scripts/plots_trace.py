@@ -4,10 +4,9 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
 
+from bsrbench.io import read_npz  # noqa: E402
 from bsrbench.reporting.convergence import plot_chain_traces  # noqa: E402
 from bsrbench.reporting.plots import save  # noqa: E402
 from bsrbench.reporting.tables import read_results  # noqa: E402
@@ -26,8 +25,7 @@ row = df[
     & (df["seed"] == int(seed[4:]))
 ]
 params = json.loads(row["params"].iloc[0]) if len(row) else {}
-with np.load(path) as f:
-    arrays = {k: f[k] for k in f.files}
+arrays = read_npz(path)
 label = dict(sm.params.labels).get(method, method)
 fig = plot_chain_traces(
     arrays,
