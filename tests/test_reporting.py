@@ -234,6 +234,9 @@ def test_findings_cover_every_protocol_run_and_the_section_is_never_an_empty_lis
     write_generated(out, df, None, labels=LABELS)
     tex = out.read_text()
     assert "on the training frames of seed 100 (the study's first)" in tex and "seed 0" not in tex
+    assert "2 splits (seeds) per size" in tex
+    write_generated(out, aggregate_rows([r for r in rows if r["seed"] == 100]), None, labels=LABELS)
+    assert "1 split (seed) per size" in out.read_text()
     only_pm = aggregate_rows([r for r in rows if r["method"] == "PM"])
     assert findings(only_pm, None, labels=LABELS) == []
     write_generated(out, only_pm, None, labels=LABELS)
@@ -446,7 +449,7 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     rows = [dict(r, protocol=p) for p in protocols for r in _rows({("golf", "PM"): [8.0, 9.0]})]
     fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
     names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
-    assert [n for n in names if n.startswith("this study")] == [f"this study ({p})" for p in
+    assert [n for n in names if n.startswith("this study")] == [f"this study ({p.replace('_', '-')})" for p in
                                                                   ("random", "contiguous", "cross_trial") if p in protocols]
     assert "PM" in names and "the paper" in names
     styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {":", "None"}  # the paper dotted; caps
