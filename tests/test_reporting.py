@@ -449,8 +449,8 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     rows = [dict(r, protocol=p) for p in protocols for r in _rows({("golf", "PM"): [8.0, 9.0]})]
     fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
     names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
-    assert [n for n in names if n.startswith("this study")] == [f"this study ({p.replace('_', '-')})" for p in
-                                                                  ("random", "contiguous", "cross_trial") if p in protocols]
+    expected = [f"this study ({p.replace('_', '-')})" for p in ("random", "contiguous", "cross_trial") if p in protocols]
+    assert [n for n in names if n.startswith("this study")] == expected
     assert "PM" in names and "the paper" in names
     styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {":", "None"}  # the paper dotted; caps
     assert styles == {{"random": "-", "contiguous": "--", "cross_trial": "-."}[p] for p in protocols}

@@ -164,8 +164,8 @@ def _is_exact(params):
 
 def goal_table(df, *, variants, nn="NN1"):
     """The issue's goal per (protocol, variant run with several chains): is it exact, in how many (source,
-    activity, N) cells did every split converge (:data:`RHAT_OK` on the log-likelihood and g_xy, several chains), in how many is its mean
-    error below 1-NN's, and in how many both. Sorted by protocol, then by cells with both (descending), then
+    activity, N) cells did every split converge (:data:`RHAT_OK` on the log-likelihood and g_xy), in how many is
+    its mean error below 1-NN's, and in how many both. Sorted by protocol, then by cells with both (descending), then
     by the variant's mean rank of error among the variants over the cells. Empty DataFrame if no variant ran.
 
     Columns: protocol, method, exact, cells, converged, beats_nn, both, mean_rank.
@@ -340,8 +340,6 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
             )
     conv = convergence_summary_table(df)
     conv = conv[conv["method"].isin(variants)] if not conv.empty else conv
-    exact_variants = {m for m, g in df[df["method"].isin(variants)].groupby("method")
-                      if "params" not in g or _is_exact(g["params"].iloc[0])}
     if conv.empty:
         out.append("No PM variant was run with several chains, so convergence was not measured here.")
     else:
@@ -417,7 +415,8 @@ def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1")
     lines += [r"\subsection*{Convergence}", convergence_latex(df, labels=labels), ""]
     goal = goal_latex(df, variants=variants, labels=labels, nn=nn)
     if goal:
-        lines += [r"\subsection*{The goal: an exact PM that converges and beats " + latex_escape(labels.get(nn, nn)) + "}",
+        lines += [r"\subsection*{The goal: an exact PM that converges and beats "
+                  + latex_escape(labels.get(nn, nn)) + "}",
                   goal_sentence(df, variants=variants, labels=labels, nn=nn), "", goal, ""]
     if len(variants) > 1 or nn in set(df["method"]):
         lines += [r"\subsection*{Ablation}", ablation_latex(df, paper, variants=variants, labels=labels, nn=nn), ""]

@@ -219,7 +219,8 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
         for i, m in enumerate(methods)
     ]
     # only the protocols in the data (a contiguous-only study has no "random" line to explain)
-    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls=ls, label=f"this study ({protocol.replace('_', '-')})")
+    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls=ls,
+                    label=f"this study ({protocol.replace('_', '-')})")
              for protocol, ls in PROTOCOL_LINESTYLES.items() if protocol in protocols]
     if shown_paper:
         style.append(Line2D([], [], color="0.3", marker="o", mfc="white", ms=4.5, lw=0.9, ls=":", label="the paper"))

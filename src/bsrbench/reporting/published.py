@@ -11,8 +11,8 @@ so that anyone can regenerate and check the README's tables without rerunning th
 ``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it, and that
 it is the table of the study the destination is named after: the study is the folder ``<study>`` of
 ``results/<study>/aggregate/results.csv`` and the destination must be ``<study>.csv``
-(``reports/published/<study>.csv``), so that another study's results (e.g. the quick default study's) cannot silently replace ``paper.csv``. For a source
-outside ``results/`` name the study with ``--study NAME``::
+(``reports/published/<study>.csv``), so that another study's results (e.g. the quick default study's) cannot
+silently replace ``paper.csv``. For a source outside ``results/`` name the study with ``--study NAME``::
 
     python -m bsrbench.reporting.published publish --study paper /elsewhere/results.csv reports/published/paper.csv
 

@@ -325,6 +325,7 @@ def setup_text(df, *, labels):
     seeds = sorted(df["seed"].unique())
     sizes = sorted(df["n_train"].unique())
     cv = sorted(df["cv"].dropna().unique()) if "cv" in df.columns else []
+    splits = "split (seed)" if len(seeds) == 1 else "splits (seeds)"
     methods = [latex_escape(labels.get(m, m)) for m in _methods(df, labels)]
     how = {
         "per_size": "chosen by cross-validation once per activity, method and $N$, on the training frames of "
@@ -335,7 +336,7 @@ def setup_text(df, *, labels):
     return [
         "Data: " + "; ".join(f"{latex_escape(s)}: {', '.join(a)}" for s, a in sources.items()) + ".",
         f"Methods: {', '.join(methods)}.",
-        f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} {'split (seed)' if len(seeds) == 1 else 'splits (seeds)'} per size; "
+        f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} {splits} per size; "
         f"protocol: {latex_escape(', '.join(sorted(df['protocol'].unique())))}; "
         f"pose transform: {latex_escape(', '.join(sorted(df['pose_transform'].unique())))}.",
         "Hyper-parameters: " + "; ".join(how.get(c, latex_escape(c)) for c in cv or ["none"])
