@@ -20,7 +20,10 @@ retype_cli_config(config, workflow.config_settings.config_args, workflow.config_
 retype_yaml_numbers(
     config,
     load_schema(
-        *(Path(workflow.basedir) / "workflow" / "schemas" / f for f in ("config.schema.yaml", "datasets.schema.yaml"))
+        *(
+            Path(workflow.basedir) / "workflow" / "schemas" / f
+            for f in ("config.schema.yaml", "datasets.schema.yaml")
+        )
     ),
 )
 
@@ -59,10 +62,10 @@ onerror:
 
 
 rule all:
+    default_target: True
     input:
         feature_targets(),
         study_targets(),
-    default_target: True
 
 
 # Under a cluster executor (profiles/slurm) these run on the submit host instead of as cluster jobs: they take

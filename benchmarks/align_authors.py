@@ -26,7 +26,6 @@ import scipy.io as sio
 from scipy.spatial.transform import Rotation
 
 from bsrbench.authors import (
-    HSC_ANGLE_NAMES,
     HSC_JOINTS,
     HSC_ROLE_ORDER,
     align_rows,
@@ -68,8 +67,15 @@ def load_trial(tid):
     idx = [b.skeleton.index(j) for j in joints]
     cols, names = pose_columns(b.skeleton, joints)
     angles = np.where(cols >= 0, b.motion[:, np.maximum(cols, 0)], 0.0)
-    return {"bvh": b, "kind": kind, "root": b.motion[:, :3], "R": R[:, idx], "angles": angles, "names": names,
-            "joints": joints}
+    return {
+        "bvh": b,
+        "kind": kind,
+        "root": b.motion[:, :3],
+        "R": R[:, idx],
+        "angles": angles,
+        "names": names,
+        "joints": joints,
+    }
 
 
 def csv(df, path):
@@ -124,17 +130,25 @@ def run(name):
         B.append(b)
         res_all = geodesic_deg(R_th[:, c], a @ R_ours[:, k] @ b)
         ident = geodesic_deg(R_th[:, c], R_ours[:, k])
-        jrows.append({
-            "hsc_joint": j, "our_joint": joints_ours[k],
-            "A_rotvec_deg": " ".join(f"{v:.1f}" for v in np.rad2deg(Rotation.from_matrix(a).as_rotvec())),
-            "B_rotvec_deg": " ".join(f"{v:.1f}" for v in np.rad2deg(Rotation.from_matrix(b).as_rotvec())),
-            "A_angle_deg": float(geodesic_deg(np.eye(3), a)), "B_angle_deg": float(geodesic_deg(np.eye(3), b)),
-            "residual_median_fit": float(np.median(res_all[fit_set])),
-            "residual_median_check": float(np.median(res_all[check_set])),
-            "residual_p90_check": float(np.percentile(res_all[check_set], 90)),
-            "identity_median": float(np.median(ident[usable])),
-            "their_motion_median": float(np.median(geodesic_deg(R_th[usable, c], np.eye(3)))),
-        })
+        jrows.append(
+            {
+                "hsc_joint": j,
+                "our_joint": joints_ours[k],
+                "A_rotvec_deg": " ".join(
+                    f"{v:.1f}" for v in np.rad2deg(Rotation.from_matrix(a).as_rotvec())
+                ),
+                "B_rotvec_deg": " ".join(
+                    f"{v:.1f}" for v in np.rad2deg(Rotation.from_matrix(b).as_rotvec())
+                ),
+                "A_angle_deg": float(geodesic_deg(np.eye(3), a)),
+                "B_angle_deg": float(geodesic_deg(np.eye(3), b)),
+                "residual_median_fit": float(np.median(res_all[fit_set])),
+                "residual_median_check": float(np.median(res_all[check_set])),
+                "residual_p90_check": float(np.percentile(res_all[check_set], 90)),
+                "identity_median": float(np.median(ident[usable])),
+                "their_motion_median": float(np.median(geodesic_deg(R_th[usable, c], np.eye(3)))),
+            }
+        )
     A, B = np.stack(A), np.stack(B)
 
     # trials the trajectory does not place (09_10: its root channels are broken, in our file and in
@@ -157,7 +171,9 @@ def run(name):
     if len(new) > len(matched):
         extra = np.setdiff1d(new, matched)
         R_ours = np.concatenate([R_ours, [trials[row_trial[r]]["R"][row_frame[r]] for r in extra]])
-        A_ours = np.concatenate([A_ours, [trials[row_trial[r]]["angles"][row_frame[r]] for r in extra]])
+        A_ours = np.concatenate(
+            [A_ours, [trials[row_trial[r]]["angles"][row_frame[r]] for r in extra]]
+        )
         R_th = np.concatenate([R_th, hsc_rotations(Y[extra])])
         order = np.argsort(np.concatenate([matched, extra]), kind="stable")
         matched = np.concatenate([matched, extra])[order]
@@ -172,20 +188,44 @@ def run(name):
     row_aerr[matched] = err.mean(1)
     row_geo = np.full(R_rows, np.nan)
     row_geo[matched] = np.stack(
-        [geodesic_deg(R_th[:, HSC_JOINTS.index(j)], A[k] @ R_ours[:, k] @ B[k]) for k, j in enumerate(HSC_ROLE_ORDER)],
+        [
+            geodesic_deg(R_th[:, HSC_JOINTS.index(j)], A[k] @ R_ours[:, k] @ B[k])
+            for k, j in enumerate(HSC_ROLE_ORDER)
+        ],
         axis=1,
     ).mean(1)
 
-    rows_df = pd.DataFrame({
-        "row": np.arange(R_rows), "trial": row_trial, "frame_120fps": row_frame, "matched_by": row_by,
-        "translation_residual": row_tres, "angle_residual_deg": row_aerr, "rotation_residual_deg": row_geo,
-    })
-    trials_df = pd.DataFrame([{
-        "trial": m["trial"], "frames_120fps": len(trials[m["trial"]]["root"]), "phase": m["phase"],
-        "start_row": m["start_row"], "n_rows": m["n_rows"], "matched_by": m["by"], "score": m["score"],
-        "slope_x": m["slope"][0], "slope_y": m["slope"][1], "slope_z": m["slope"][2],
-        "rms_x": m["rms"][0], "rms_y": m["rms"][1], "rms_z": m["rms"][2],
-    } for m in matches])
+    rows_df = pd.DataFrame(
+        {
+            "row": np.arange(R_rows),
+            "trial": row_trial,
+            "frame_120fps": row_frame,
+            "matched_by": row_by,
+            "translation_residual": row_tres,
+            "angle_residual_deg": row_aerr,
+            "rotation_residual_deg": row_geo,
+        }
+    )
+    trials_df = pd.DataFrame(
+        [
+            {
+                "trial": m["trial"],
+                "frames_120fps": len(trials[m["trial"]]["root"]),
+                "phase": m["phase"],
+                "start_row": m["start_row"],
+                "n_rows": m["n_rows"],
+                "matched_by": m["by"],
+                "score": m["score"],
+                "slope_x": m["slope"][0],
+                "slope_y": m["slope"][1],
+                "slope_z": m["slope"][2],
+                "rms_x": m["rms"][0],
+                "rms_y": m["rms"][1],
+                "rms_z": m["rms"][2],
+            }
+            for m in matches
+        ]
+    )
     corr = column_correlations(Y[matched][usable, 3:], A_ours[usable], names_ours)
     cols_df = pd.DataFrame(corr)
     cols_df["mapped_rms_deg_check"] = np.sqrt((err[check_set] ** 2).mean(0))
@@ -196,13 +236,21 @@ def run(name):
     csv(trials_df, OUT / f"{name}_trials.csv")
     csv(pd.DataFrame(jrows), OUT / f"{name}_joints.csv")
     csv(cols_df, OUT / f"{name}_columns.csv")
-    save_angle_mapping(OUT / f"{name}_mapping.csv", A, B, joints_ours, trials[row_trial[matched[0]]]["kind"])
-    print(f"== {name}: {len(matched)} of {R_rows} rows matched; common slope per axis {np.round(slope, 4)}")
+    save_angle_mapping(
+        OUT / f"{name}_mapping.csv", A, B, joints_ours, trials[row_trial[matched[0]]]["kind"]
+    )
+    print(
+        f"== {name}: {len(matched)} of {R_rows} rows matched; common slope per axis {np.round(slope, 4)}"
+    )
     print(trials_df.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(pd.DataFrame(jrows).to_string(index=False, float_format=lambda v: f"{v:.1f}"))
     print(cols_df.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
-    print("mean angle residual over matched rows (deg):", np.nanmean(row_aerr),
-          " median translation residual:", np.nanmedian(row_tres))
+    print(
+        "mean angle residual over matched rows (deg):",
+        np.nanmean(row_aerr),
+        " median translation residual:",
+        np.nanmedian(row_tres),
+    )
     return rows_df, trials_df
 
 

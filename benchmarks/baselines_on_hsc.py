@@ -146,7 +146,9 @@ def table(df):
         }
         col = {m[0]: m[3] for m in methods(activity, n_train, 0)}[method]
         p = paper[
-            (paper.activity == ACTIVITIES[activity][1]) & (paper.n_train == n_train) & (paper.method == col)
+            (paper.activity == ACTIVITIES[activity][1])
+            & (paper.n_train == n_train)
+            & (paper.method == col)
         ]
         row["paper"] = f"{p.mean_deg.iloc[0]:.2f} ± {p.std_deg.iloc[0]:.2f}" if len(p) else ""
         out.append(row)
@@ -154,13 +156,17 @@ def table(df):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--activities", nargs="+", default=list(ACTIVITIES), choices=list(ACTIVITIES))
     ap.add_argument("--sizes", nargs="+", type=int, default=[30, 60, 100, 200])
     ap.add_argument("--seeds", type=int, default=3, help="number of seeds (0 .. seeds-1)")
     ap.add_argument("--cv", type=int, default=5)
     ap.add_argument("--methods", nargs="+", default=None, help="subset of method names")
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "baselines_hsc.csv")
+    ap.add_argument(
+        "--out", type=Path, default=ROOT / "benchmarks" / "results" / "baselines_hsc.csv"
+    )
     a = ap.parse_args()
     with threadpool_limits(1):  # one BLAS thread: the machine's cores are shared by parallel jobs
         df = run(a.activities, a.sizes, list(range(a.seeds)), a.cv, a.methods)

@@ -51,7 +51,9 @@ def main():
         if not set(params) <= accepted:
             continue
         for n in (lo, hi):
-            spec = JobSpec("hsc", args.activity, m, n, cfg["seed_start"], protocol=cfg["protocols"][0])
+            spec = JobSpec(
+                "hsc", args.activity, m, n, cfg["seed_start"], protocol=cfg["protocols"][0]
+            )
             with threadpool_limits(1):
                 t0 = time.process_time()
                 try:
@@ -69,18 +71,40 @@ def main():
             t = np.interp(n, [lo, hi], [cpu[src, lo], cpu[src, hi]])
             total += chains * n_act * n_seeds * t
             jobs += chains * n_act * n_seeds
-    print(f"\n{jobs} chain jobs, {total / 3600:.1f} CPU hours: {total / 3600 / args.cores:.1f} h wall on "
-          f"{args.cores} cores (chain jobs only)")
+    print(
+        f"\n{jobs} chain jobs, {total / 3600:.1f} CPU hours: {total / 3600 / args.cores:.1f} h wall on "
+        f"{args.cores} cores (chain jobs only)"
+    )
     res = ROOT / "results" / cfg.get("study", "ablation")
     for m in [m for m in cfg["run"] if m not in variants]:
         for n in sizes:
-            f = res / "fit" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
-            c = res / "cv" / cfg["protocols"][0] / "hsc" / args.activity / m / f"n{n}" / "seed100.json"
+            f = (
+                res
+                / "fit"
+                / cfg["protocols"][0]
+                / "hsc"
+                / args.activity
+                / m
+                / f"n{n}"
+                / "seed100.json"
+            )
+            c = (
+                res
+                / "cv"
+                / cfg["protocols"][0]
+                / "hsc"
+                / args.activity
+                / m
+                / f"n{n}"
+                / "seed100.json"
+            )
             if f.is_file():
                 row = json.loads(f.read_text())
                 cv = json.loads(c.read_text())["cv_seconds"] if c.is_file() else None
-                print(f"{m} N={n}: fit {row['fit_seconds']:.2f} s, predict {row['predict_seconds']:.2f} s, "
-                      f"CV {cv if cv is None else round(cv, 1)} s (wall, measured in the workflow)")
+                print(
+                    f"{m} N={n}: fit {row['fit_seconds']:.2f} s, predict {row['predict_seconds']:.2f} s, "
+                    f"CV {cv if cv is None else round(cv, 1)} s (wall, measured in the workflow)"
+                )
 
 
 if __name__ == "__main__":

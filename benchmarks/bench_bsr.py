@@ -26,20 +26,20 @@ import os
 for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-import importlib  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import importlib
+import sys
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import numpy as np
+import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from bsrbench.io import atomic_path  # noqa: E402
-from bsrbench.models import _bsr_kernels as kern  # noqa: E402
-from bsrbench.models.bsr import BayesianSR  # noqa: E402
+from bsrbench.io import atomic_path
+from bsrbench.models import _bsr_kernels as kern
+from bsrbench.models.bsr import BayesianSR
 
 MX, MY = 100, 57
 M = MX + MY
@@ -107,15 +107,23 @@ def sweep_times(N, K, w_update, atom_update, reps, naive_reps, naive, noise="sha
     copy per repeat (its sweep is exact too, so the state stays realistic)."""
     state, data, hyper, rng, _ = problem(N, K, warmup=2, noise=noise)
     ref_state = copy_state(state)
-    t_k = timed(lambda: kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update), reps, "kernel")
+    t_k = timed(
+        lambda: kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update), reps, "kernel"
+    )
     ref_rng = np.random.default_rng(1)
-    t_n = timed(lambda: naive.gibbs_sweep(ref_state, data, hyper, ref_rng, w_update, atom_update), naive_reps,
-                "naive")
+    t_n = timed(
+        lambda: naive.gibbs_sweep(ref_state, data, hyper, ref_rng, w_update, atom_update),
+        naive_reps,
+        "naive",
+    )
     return t_k, t_n
 
 
 def markdown(header, rows):
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---:" if i else "---" for i in range(len(header))) + "|"]
+    out = [
+        "| " + " | ".join(header) + " |",
+        "|" + "|".join("---:" if i else "---" for i in range(len(header))) + "|",
+    ]
     out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return "\n".join(out)
 
@@ -130,7 +138,9 @@ def dgemm_rate(m, k, n, reps):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
-    ap.add_argument("--naive", default=str(ROOT / "tests"), help="folder of the NumPy reference naive.py")
+    ap.add_argument(
+        "--naive", default=str(ROOT / "tests"), help="folder of the NumPy reference naive.py"
+    )
     ap.add_argument("--label", default="", help="a name for this run in the printed headings")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "bsr.csv"))
     args = ap.parse_args(argv)
@@ -142,35 +152,69 @@ def main(argv=None):
     # as BayesianSR.fit does (older kernels do not have it: timed as their fit ran them)
     kept = kern.keep_freed_memory() if hasattr(kern, "keep_freed_memory") else "n/a"
     _, _, _, source = load_data(10)
-    print(f"# bench_bsr {args.label}\n\ndata: {source}; kernels: {kern.__file__}; threads: "
-          f"NUMBA={os.environ['NUMBA_NUM_THREADS']} BLAS={os.environ['OPENBLAS_NUM_THREADS']}; "
-          f"times: the thread's CPU time, kernel sweeps median of {reps}, reference median of {naive_reps}; "
-          f"load average at the start: {os.getloadavg()[0]:.2f}; keep_freed_memory: {kept}")
+    print(
+        f"# bench_bsr {args.label}\n\ndata: {source}; kernels: {kern.__file__}; threads: "
+        f"NUMBA={os.environ['NUMBA_NUM_THREADS']} BLAS={os.environ['OPENBLAS_NUM_THREADS']}; "
+        f"times: the thread's CPU time, kernel sweeps median of {reps}, reference median of {naive_reps}; "
+        f"load average at the start: {os.getloadavg()[0]:.2f}; keep_freed_memory: {kept}"
+    )
 
     # 1. the sweep grid, default and single-site
-    for atom_update, title in (("block", "default sweep (ESS logits, block atoms)"),
-                               ("single", "single-site atoms (ESS logits)")):
+    for atom_update, title in (
+        ("block", "default sweep (ESS logits, block atoms)"),
+        ("single", "single-site atoms (ESS logits)"),
+    ):
         table = []
         for n in NS:
             cells = [f"{n}"]
             for k in KS:
                 t_k, t_n = sweep_times(n, k, "ess", atom_update, reps, naive_reps, naive)
-                rows.append(dict(section="grid", N=n, K=k, w_update="ess", atom_update=atom_update,
-                                 ms=1e3 * t_k, naive_ms=1e3 * t_n, wall_ms=1e3 * WALL["kernel"],
-                                 naive_wall_ms=1e3 * WALL["naive"]))
+                rows.append(
+                    dict(
+                        section="grid",
+                        N=n,
+                        K=k,
+                        w_update="ess",
+                        atom_update=atom_update,
+                        ms=1e3 * t_k,
+                        naive_ms=1e3 * t_n,
+                        wall_ms=1e3 * WALL["kernel"],
+                        naive_wall_ms=1e3 * WALL["naive"],
+                    )
+                )
                 cells.append(f"{1e3 * t_k:.2f} ms ({t_n / t_k:.0f}x)")
             table.append(cells)
-        print(f"\n## 1. ms per sweep, {title}: N (rows) x K (columns), speed-up over the NumPy reference\n")
+        print(
+            f"\n## 1. ms per sweep, {title}: N (rows) x K (columns), speed-up over the NumPy reference\n"
+        )
         print(markdown(["N \\ K"] + [str(k) for k in KS], table))
 
     # 2. every exact variant at paper scale
     N, K = 200, 256
     table = []
-    for wu, au, noise in (("ess", "block", "shared"), ("mh", "block", "shared"), ("ess", "single", "shared"),
-                          ("mh", "single", "shared"), ("ess", "block", "separate"), ("ess", "single", "separate")):
+    for wu, au, noise in (
+        ("ess", "block", "shared"),
+        ("mh", "block", "shared"),
+        ("ess", "single", "shared"),
+        ("mh", "single", "shared"),
+        ("ess", "block", "separate"),
+        ("ess", "single", "separate"),
+    ):
         t_k, t_n = sweep_times(N, K, wu, au, reps, naive_reps, naive, noise)
-        rows.append(dict(section="variant", N=N, K=K, w_update=wu, atom_update=au, noise=noise, ms=1e3 * t_k,
-                         naive_ms=1e3 * t_n, wall_ms=1e3 * WALL["kernel"], naive_wall_ms=1e3 * WALL["naive"]))
+        rows.append(
+            dict(
+                section="variant",
+                N=N,
+                K=K,
+                w_update=wu,
+                atom_update=au,
+                noise=noise,
+                ms=1e3 * t_k,
+                naive_ms=1e3 * t_n,
+                wall_ms=1e3 * WALL["kernel"],
+                naive_wall_ms=1e3 * WALL["naive"],
+            )
+        )
         table.append([wu, au, noise, f"{1e3 * t_k:.2f}", f"{1e3 * t_n:.0f}", f"{t_n / t_k:.0f}x"])
     print(f"\n## 2. exact sweep variants at N = {N}, K = {K}\n")
     print(markdown(["logits", "atoms", "noise", "ms", "reference ms", "speed-up"], table))
@@ -181,38 +225,97 @@ def main(argv=None):
     nnz = int(state.B.sum())
     # nominal flop counts (the algorithms' own, the same for every implementation)
     parts = {
-        "codes": (lambda: kern.update_codes(state.R, state.D, state.norms, state.B, state.S, state.W, p[0], p[1],
-                                            rng),
-                  4.0 * N * K * M, "4NKM: d_k . r_i and the residual update for every (i, k)", (N, M, K)),
-        "atoms (block)": (lambda: kern.update_atoms(data.V, state.R, state.D, state.norms, state.B, state.S, p[1],
-                                                    p[2], p[3], MX, rng),
-                          2.0 * N * K * K + 4.0 * N * K * M + 2.0 * K**3 / 3 + 2.0 * K * K * M,
-                          "2NK^2 (A^T A) + 4NKM (A^T V, residual) + 2 K^3/3 (two Cholesky) + 2K^2 M (solves)",
-                          (K, N, K)),
-        "atoms (single-site)": (lambda: kern.update_atoms_single(state.R, state.D, state.norms, state.B, state.S,
-                                                                 p[1], p[2], p[3], MX, rng),
-                                4.0 * nnz * M, f"4 nnz M (nnz = {nnz} active codes)", (N, M, K)),
-        "precisions": (lambda: kern.update_precisions(state.R, state.D, state.S, p.copy(), MX, 1e-6, 1e-6, rng),
-                       2.0 * (N * K + N * M + K * M), "2(NK + NM + KM): sums of squares", (N, M, K)),
-        "logits (ESS)": (lambda: kern.update_w_ess(state.W.copy(), state.B, data.Lw, rng),
-                         2.0 * K * N * N, "2KN^2: the ellipses L_w eps", (K, N, N)),
-        "logits (MH)": (lambda: kern.update_w_mh(state.W.copy(), state.B, data.Sigma, data.Lw, rng),
-                        6.0 * K * N * N, "6KN^2: Sigma Lambda twice, L_w eps", (K, N, N)),
+        "codes": (
+            lambda: kern.update_codes(
+                state.R, state.D, state.norms, state.B, state.S, state.W, p[0], p[1], rng
+            ),
+            4.0 * N * K * M,
+            "4NKM: d_k . r_i and the residual update for every (i, k)",
+            (N, M, K),
+        ),
+        "atoms (block)": (
+            lambda: kern.update_atoms(
+                data.V, state.R, state.D, state.norms, state.B, state.S, p[1], p[2], p[3], MX, rng
+            ),
+            2.0 * N * K * K + 4.0 * N * K * M + 2.0 * K**3 / 3 + 2.0 * K * K * M,
+            "2NK^2 (A^T A) + 4NKM (A^T V, residual) + 2 K^3/3 (two Cholesky) + 2K^2 M (solves)",
+            (K, N, K),
+        ),
+        "atoms (single-site)": (
+            lambda: kern.update_atoms_single(
+                state.R, state.D, state.norms, state.B, state.S, p[1], p[2], p[3], MX, rng
+            ),
+            4.0 * nnz * M,
+            f"4 nnz M (nnz = {nnz} active codes)",
+            (N, M, K),
+        ),
+        "precisions": (
+            lambda: kern.update_precisions(
+                state.R, state.D, state.S, p.copy(), MX, 1e-6, 1e-6, rng
+            ),
+            2.0 * (N * K + N * M + K * M),
+            "2(NK + NM + KM): sums of squares",
+            (N, M, K),
+        ),
+        "logits (ESS)": (
+            lambda: kern.update_w_ess(state.W.copy(), state.B, data.Lw, rng),
+            2.0 * K * N * N,
+            "2KN^2: the ellipses L_w eps",
+            (K, N, N),
+        ),
+        "logits (MH)": (
+            lambda: kern.update_w_mh(state.W.copy(), state.B, data.Sigma, data.Lw, rng),
+            6.0 * K * N * N,
+            "6KN^2: Sigma Lambda twice, L_w eps",
+            (K, N, N),
+        ),
     }
     table = []
     for name, (fn, flops, formula, shape) in parts.items():
         t = timed(fn, reps, "part")
         peak = dgemm_rate(*shape, reps)
-        rows.append(dict(section="part", N=N, K=K, w_update=name, ms=1e3 * t, wall_ms=1e3 * WALL["part"],
-                         gflops=flops / t / 1e9, dgemm_gflops=peak))
-        table.append([name, f"{1e3 * t:.3f}", f"{flops / 1e6:.1f}", f"{flops / t / 1e9:.1f}",
-                      f"{peak:.1f} ({shape[0]}x{shape[1]} @ {shape[1]}x{shape[2]})", f"{flops / t / 1e9 / peak:.0%}",
-                      formula])
+        rows.append(
+            dict(
+                section="part",
+                N=N,
+                K=K,
+                w_update=name,
+                ms=1e3 * t,
+                wall_ms=1e3 * WALL["part"],
+                gflops=flops / t / 1e9,
+                dgemm_gflops=peak,
+            )
+        )
+        table.append(
+            [
+                name,
+                f"{1e3 * t:.3f}",
+                f"{flops / 1e6:.1f}",
+                f"{flops / t / 1e9:.1f}",
+                f"{peak:.1f} ({shape[0]}x{shape[1]} @ {shape[1]}x{shape[2]})",
+                f"{flops / t / 1e9 / peak:.0%}",
+                formula,
+            ]
+        )
     big = dgemm_rate(1000, 1000, 1000, 5)
-    print(f"\n## 3. GFLOP/s per part at N = {N}, K = {K}, M = {M} (codes on: {state.B.mean():.2f}); DGEMM "
-          f"1000^3 in this run: {big:.1f} GFLOP/s\n")
-    print(markdown(["part", "ms", "MFLOP", "GFLOP/s", "DGEMM GFLOP/s (matching size)", "of DGEMM", "flop count"],
-                   table))
+    print(
+        f"\n## 3. GFLOP/s per part at N = {N}, K = {K}, M = {M} (codes on: {state.B.mean():.2f}); DGEMM "
+        f"1000^3 in this run: {big:.1f} GFLOP/s\n"
+    )
+    print(
+        markdown(
+            [
+                "part",
+                "ms",
+                "MFLOP",
+                "GFLOP/s",
+                "DGEMM GFLOP/s (matching size)",
+                "of DGEMM",
+                "flop count",
+            ],
+            table,
+        )
+    )
 
     # 4. prediction: 400 test points, 50 posterior samples x 10 sweeps, K = 256
     L, T, n_sweeps = 50, 400, 10
@@ -229,12 +332,16 @@ def main(argv=None):
     def predict():
         nbr = kern.nearest_neighbours(Xt, Xtr, 5)
         seeds = kern.point_seeds(Xt.view(np.uint64), np.uint64(3))
-        kern.predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, np.empty((T, L, MY)), np.empty((T, L)))
+        kern.predict_kernel(
+            Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, np.empty((T, L, MY)), np.empty((T, L))
+        )
 
     t = timed(predict, 3 if args.quick else 7, "predict")
     rows.append(dict(section="predict", N=N, K=K, ms=1e3 * t, wall_ms=1e3 * WALL["predict"]))
-    print(f"\n## 4. prediction of {T} points, {L} samples x {n_sweeps} code sweeps, K = {K}, N = {N}: "
-          f"{t:.2f} s CPU, {WALL['predict']:.2f} s wall (median of {3 if args.quick else 7})")
+    print(
+        f"\n## 4. prediction of {T} points, {L} samples x {n_sweeps} code sweeps, K = {K}, N = {N}: "
+        f"{t:.2f} s CPU, {WALL['predict']:.2f} s wall (median of {3 if args.quick else 7})"
+    )
 
     out = Path(args.out)
     with atomic_path(out) as tmp:

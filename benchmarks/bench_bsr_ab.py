@@ -19,21 +19,22 @@ import os
 for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-import importlib  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import importlib
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import bench_bsr as bb  # noqa: E402
-from bsrbench.models import _bsr_kernels as new  # noqa: E402
+import bench_bsr as bb
+
+from bsrbench.models import _bsr_kernels as new
 
 DEFAULT_SIZES = ("30x64", "30x128", "60x64", "60x128", "100x196", "200x256")
 
@@ -41,7 +42,9 @@ DEFAULT_SIZES = ("30x64", "30x128", "60x64", "60x128", "100x196", "200x256")
 def old_kernels(rev, workdir):
     """The ``_bsr_kernels`` module of git revision ``rev``, imported as ``bsrbench_<rev>.models._bsr_kernels``."""
     name = "bsrbench_" + "".join(c if c.isalnum() else "_" for c in rev)
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src/bsrbench"], capture_output=True)
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", rev, "src/bsrbench"], capture_output=True
+    )
     if archive.returncode != 0:
         raise SystemExit(f"git archive {rev}: {archive.stderr.decode().strip()}")
     subprocess.run(["tar", "-x", "-C", workdir], input=archive.stdout, check=True)
@@ -75,7 +78,9 @@ def size_cell(text):
     """(N, K) of an ``NxK`` cell such as ``30x64`` (argparse type): ArgumentTypeError otherwise."""
     parts = text.lower().split("x")
     if len(parts) != 2 or not all(p.isdigit() and int(p) > 0 for p in parts):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected NxK, e.g. 30x64 (N training frames, K atoms)")
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected NxK, e.g. 30x64 (N training frames, K atoms)"
+        )
     return int(parts[0]), int(parts[1])
 
 
@@ -87,27 +92,54 @@ def positive_int(text):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("rev", help="the older git revision (e.g. a commit before a kernel change)")
-    ap.add_argument("--sizes", nargs="+", type=size_cell, default=[size_cell(c) for c in DEFAULT_SIZES],
-                    metavar="NxK",
-                    help=f"cells to time, N training frames x K atoms (default: {' '.join(DEFAULT_SIZES)})")
-    ap.add_argument("--w-update", default="ess", choices=("ess", "mh"),
-                    help="update of the logits: elliptical slice sampling or Metropolis-Hastings "
-                         "(default: %(default)s)")
-    ap.add_argument("--atom-update", default="block", choices=("block", "single"),
-                    help="dictionary update: all atoms jointly or one at a time (default: %(default)s)")
-    ap.add_argument("--batches", type=positive_int, default=15,
-                    help="alternating batches per kernel; the medians are over them (default: %(default)s)")
-    ap.add_argument("--per-batch", type=positive_int, default=10,
-                    help="Gibbs sweeps per batch (default: %(default)s)")
+    ap.add_argument(
+        "--sizes",
+        nargs="+",
+        type=size_cell,
+        default=[size_cell(c) for c in DEFAULT_SIZES],
+        metavar="NxK",
+        help=f"cells to time, N training frames x K atoms (default: {' '.join(DEFAULT_SIZES)})",
+    )
+    ap.add_argument(
+        "--w-update",
+        default="ess",
+        choices=("ess", "mh"),
+        help="update of the logits: elliptical slice sampling or Metropolis-Hastings "
+        "(default: %(default)s)",
+    )
+    ap.add_argument(
+        "--atom-update",
+        default="block",
+        choices=("block", "single"),
+        help="dictionary update: all atoms jointly or one at a time (default: %(default)s)",
+    )
+    ap.add_argument(
+        "--batches",
+        type=positive_int,
+        default=15,
+        help="alternating batches per kernel; the medians are over them (default: %(default)s)",
+    )
+    ap.add_argument(
+        "--per-batch",
+        type=positive_int,
+        default=10,
+        help="Gibbs sweeps per batch (default: %(default)s)",
+    )
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         old = old_kernels(args.rev, tmp)
-        print(f"sweep ({args.w_update} logits, {args.atom_update} atoms), {args.rev} against this checkout, "
-              f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
-              f"load average at the start {os.getloadavg()[0]:.1f}\n")
-        print(f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|")
+        print(
+            f"sweep ({args.w_update} logits, {args.atom_update} atoms), {args.rev} against this checkout, "
+            f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
+            f"load average at the start {os.getloadavg()[0]:.1f}\n"
+        )
+        print(
+            f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|"
+        )
         for N, K in args.sizes:
             state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
             fo = sweeper(old, state, data, hyper, args.w_update, args.atom_update)

@@ -14,18 +14,18 @@ import os
 for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import time
+from pathlib import Path
 
-import arviz as az  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy.io import loadmat  # noqa: E402
+import arviz as az
+import numpy as np
+import pandas as pd
+from scipy.io import loadmat
 
-from bsrbench.io import atomic_path  # noqa: E402
-from bsrbench.metrics import mean_angle_error  # noqa: E402
-from bsrbench.models.bsr import BayesianSR  # noqa: E402
+from bsrbench.io import atomic_path
+from bsrbench.metrics import mean_angle_error
+from bsrbench.models.bsr import BayesianSR
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,9 +44,11 @@ def main(argv=None):
     for K in (64, 256):
         for seed in seeds:
             perm = np.random.default_rng(100 + seed).permutation(len(X))
-            tr, te = perm[: args.n_train], perm[args.n_train:]
+            tr, te = perm[: args.n_train], perm[args.n_train :]
             for au in ("block", "single"):
-                m = BayesianSR(n_atoms=K, n_iter=n_iter, n_burn_in=n_burn, atom_update=au, random_state=seed)
+                m = BayesianSR(
+                    n_atoms=K, n_iter=n_iter, n_burn_in=n_burn, atom_update=au, random_state=seed
+                )
                 t = time.perf_counter()
                 m.fit(X[tr], Y[tr])
                 fit_s = time.perf_counter() - t
@@ -57,10 +59,21 @@ def main(argv=None):
                     row[f"ess_per_s_{name}"] = ess / fit_s
                 row["error_deg"] = float(mean_angle_error(Y[te], m.predict(X[te])))
                 rows.append(row)
-                print(", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()),
-                      flush=True)
+                print(
+                    ", ".join(
+                        f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
+                        for k, v in row.items()
+                    ),
+                    flush=True,
+                )
     df = pd.DataFrame(rows)
-    print(df.groupby(["K", "atom_update"]).median(numeric_only=True).drop(columns="seed").round(3).to_string())
+    print(
+        df.groupby(["K", "atom_update"])
+        .median(numeric_only=True)
+        .drop(columns="seed")
+        .round(3)
+        .to_string()
+    )
     out = Path(args.out)
     with atomic_path(out) as tmp:
         df.to_csv(tmp, index=False)

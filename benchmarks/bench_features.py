@@ -46,7 +46,9 @@ def loop_shape_contexts(points, n_radial=5, n_angular=12, r_inner=0.125, r_outer
             q = int(np.sum(r < edges))
             if q == 0:
                 continue
-            a = min(int((np.arctan2(dy, dx) % (2 * np.pi)) / (2 * np.pi / n_angular)), n_angular - 1)
+            a = min(
+                int((np.arctan2(dy, dx) % (2 * np.pi)) / (2 * np.pi / n_angular)), n_angular - 1
+            )
             out[i, (n_radial - q) * n_angular + a] += 1
     return out
 
@@ -80,8 +82,12 @@ def main():
     size = (args.size, args.size)
 
     render_silhouettes(pos[:2], parents, names, image_size=size)  # compile / load the numba cache
-    t_render, masks = median_time(lambda: render_silhouettes(pos, parents, names, image_size=size), args.repeats)
-    t_desc, desc = median_time(lambda: silhouette_descriptors(masks, n_points=args.points, seed=0), args.repeats)
+    t_render, masks = median_time(
+        lambda: render_silhouettes(pos, parents, names, image_size=size), args.repeats
+    )
+    t_desc, desc = median_time(
+        lambda: silhouette_descriptors(masks, n_points=args.points, seed=0), args.repeats
+    )
     codebook = learn_codebook(desc, n_centres=100, seed=0, max_descriptors=20000)
     t_hist, _ = median_time(lambda: histogram_features(desc, codebook), args.repeats)
 
@@ -92,7 +98,9 @@ def main():
         ("histogram (soft voting, 100 centres)", t_hist / f),
     ]
     rows.append(("total", sum(r[1] for r in rows)))
-    print(f"{f} frames of 12_02.bvh at {args.size}x{args.size}, {args.points} contour points, median of {args.repeats}")
+    print(
+        f"{f} frames of 12_02.bvh at {args.size}x{args.size}, {args.points} contour points, median of {args.repeats}"
+    )
     print(f"{'step':<62} {'ms/frame':>9}")
     for name, t in rows:
         print(f"{name:<62} {1e3 * t:>9.3f}")

@@ -38,10 +38,18 @@ def naive_predict(model, Xt, n_neighbors=None):
     out = np.empty((Xt.shape[0], Ytr.shape[1]))
     for i, x in enumerate(Xt):
         d2 = ((Xtr - x) ** 2).sum(1)
-        idx = np.arange(len(Xtr)) if n_neighbors is None else np.argsort(d2, kind="stable")[:n_neighbors]
+        idx = (
+            np.arange(len(Xtr))
+            if n_neighbors is None
+            else np.argsort(d2, kind="stable")[:n_neighbors]
+        )
         Xi, Yi = Xtr[idx], Ytr[idx]
-        Kx = np.exp(-((Xi[:, None] - Xi[None]) ** 2).sum(-1) / (2 * wx**2)) + model.lambda_x * np.eye(len(idx))
-        Ky = np.exp(-((Yi[:, None] - Yi[None]) ** 2).sum(-1) / (2 * wy**2)) + model.lambda_y * np.eye(len(idx))
+        Kx = np.exp(
+            -((Xi[:, None] - Xi[None]) ** 2).sum(-1) / (2 * wx**2)
+        ) + model.lambda_x * np.eye(len(idx))
+        Ky = np.exp(
+            -((Yi[:, None] - Yi[None]) ** 2).sum(-1) / (2 * wy**2)
+        ) + model.lambda_y * np.eye(len(idx))
         kx = np.exp(-d2[idx] / (2 * wx**2))
         u = np.linalg.solve(Kx, kx)
         eta = max(1.0 + model.lambda_x - kx @ u, 0.0)
@@ -69,7 +77,9 @@ def timed(fn, repeats):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--n-neighbors", type=int, default=50)
     a = ap.parse_args()
@@ -78,19 +88,25 @@ def main():
     H = HeadingTransform()
     perm = np.random.default_rng(split_seed("hsc", "golf", 200, 0)).permutation(600)
     tr = perm[:200]
-    test = np.random.default_rng(split_seed("hsc", "golf", 30, 0)).permutation(600)[30:]  # 570 queries
+    test = np.random.default_rng(split_seed("hsc", "golf", 30, 0)).permutation(600)[
+        30:
+    ]  # 570 queries
     with threadpool_limits(1):
         model = TGP(width_scale_x=2.0, width_scale_y=0.5).fit(X[tr], H.forward(Y[tr]))
-        print(f"TGP on golf: N = {len(tr)} training frames, {len(test)} test points, X {X.shape[1]}-D, "
-              f"Y {H.forward(Y[:1]).shape[1]}-D; median of {a.repeats} repeats, 1 BLAS thread")
+        print(
+            f"TGP on golf: N = {len(tr)} training frames, {len(test)} test points, X {X.shape[1]}-D, "
+            f"Y {H.forward(Y[:1]).shape[1]}-D; median of {a.repeats} repeats, 1 BLAS thread"
+        )
         for k in (None, a.n_neighbors):
-            t_fast, P = timed(lambda: model.predict(X[test], n_neighbors=k), a.repeats)
-            t_naive, Pn = timed(lambda: naive_predict(model, X[test], n_neighbors=k), a.repeats)
+            t_fast, P = timed(lambda k=k: model.predict(X[test], n_neighbors=k), a.repeats)
+            t_naive, Pn = timed(lambda k=k: naive_predict(model, X[test], n_neighbors=k), a.repeats)
             err = mean_angle_error(Y[test], H.inverse(P))
             diff = float(np.max(np.abs(P - Pn)))
             label = "full" if k is None else f"kNN k={k}"
-            print(f"{label:10s} vectorized {t_fast:6.2f} s   naive per-point {t_naive:6.2f} s   "
-                  f"ratio {t_naive / t_fast:5.2f}x   error {err:5.2f} deg   max |fast - naive| {diff:.2e}")
+            print(
+                f"{label:10s} vectorized {t_fast:6.2f} s   naive per-point {t_naive:6.2f} s   "
+                f"ratio {t_naive / t_fast:5.2f}x   error {err:5.2f} deg   max |fast - naive| {diff:.2e}"
+            )
 
 
 if __name__ == "__main__":

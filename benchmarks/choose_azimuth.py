@@ -36,7 +36,9 @@ def nn1(X, Y, column, name, n_train=30, seeds=10):
     H = HeadingTransform(column=column)
     errs = []
     for s in range(seeds):
-        perm = np.random.default_rng(derive_seed("choose_azimuth", name, n_train, s)).permutation(len(X))
+        perm = np.random.default_rng(derive_seed("choose_azimuth", name, n_train, s)).permutation(
+            len(X)
+        )
         tr, te = perm[:n_train], perm[n_train:]
         m = NearestNeighbourRegressor(n_neighbors=1).fit(X[tr], H.forward(Y[tr]))
         errs.append(mean_angle_error(Y[te], H.inverse(m.predict(X[te]))))
@@ -56,15 +58,38 @@ def main():
     for az in a.azimuths:
         render = {**f["render"], "view_azimuth_deg": az}
         cpath = CACHE / f"codebook_az{az:g}.npz"
-        learn_codebook_from_trials(trials, cpath, frames_per_trial=cb["frames_per_trial"], n_centres=cb["n_centres"],
-                                   render=render, n_points=f["shape_context"]["n_points"], seed=f["seed"],
-                                   checksums=ROOT / cb["checksums"], skip_frames=cb["skip_frames"])
+        learn_codebook_from_trials(
+            trials,
+            cpath,
+            frames_per_trial=cb["frames_per_trial"],
+            n_centres=cb["n_centres"],
+            render=render,
+            n_points=f["shape_context"]["n_points"],
+            seed=f["seed"],
+            checksums=ROOT / cb["checksums"],
+            skip_frames=cb["skip_frames"],
+        )
         for t in trials:
             mpath, fpath = CACHE / f"{t.stem}_motion.npz", CACHE / f"{t.stem}_az{az:g}.npz"
-            prepare_motion([t], mpath, n_frames=600, frame_selection="first", skip_frames=cb["skip_frames"],
-                           frame_step=4, fewer_frames="use_all")
-            fs = compute_mocap_features(mpath, cpath, fpath, render=render, n_points=f["shape_context"]["n_points"],
-                                        soft=f["histogram"]["soft"], seed=f["seed"], name=f"codebook/{t.stem}")
+            prepare_motion(
+                [t],
+                mpath,
+                n_frames=600,
+                frame_selection="first",
+                skip_frames=cb["skip_frames"],
+                frame_step=4,
+                fewer_frames="use_all",
+            )
+            fs = compute_mocap_features(
+                mpath,
+                cpath,
+                fpath,
+                render=render,
+                n_points=f["shape_context"]["n_points"],
+                soft=f["histogram"]["soft"],
+                seed=f["seed"],
+                name=f"codebook/{t.stem}",
+            )
             err = nn1(fs.X, fs.Y, int(fs.meta["heading_column"]), t.stem)
             rows.append({"azimuth_deg": az, "trial": t.stem, "frames": len(fs.Y), "nn1_n30": err})
             print(rows[-1], flush=True)
@@ -72,7 +97,11 @@ def main():
     out = ROOT / "benchmarks" / "tables" / "choose_azimuth.csv"
     with atomic_path(out) as tmp:
         df.to_csv(tmp, index=False, float_format="%.3f")
-    print(df.groupby("azimuth_deg")["nn1_n30"].agg(["mean", "median"]).to_string(float_format=lambda v: f"{v:.2f}"))
+    print(
+        df.groupby("azimuth_deg")["nn1_n30"]
+        .agg(["mean", "median"])
+        .to_string(float_format=lambda v: f"{v:.2f}")
+    )
     print(f"wrote {out}")
 
 

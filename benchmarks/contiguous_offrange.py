@@ -35,37 +35,70 @@ from bsrbench.study import JobSpec, run_job
 
 ROOT = Path(__file__).resolve().parents[1]
 FEATURES = ROOT / "resources" / "paper-features"
-ACTIVITIES = {"acrobatics": "x4921.mat", "golf": "x63.mat", "michael_jackson": "x131.mat", "run": "x09.mat"}
+ACTIVITIES = {
+    "acrobatics": "x4921.mat",
+    "golf": "x63.mat",
+    "michael_jackson": "x131.mat",
+    "run": "x09.mat",
+}
 
 
 def load(activity):
-    fs = load_feature_mat(FEATURES / ACTIVITIES[activity], n_frames=600, frame_selection="first",
-                          drop_y_columns=3, checksums=FEATURES / "SHA256SUMS")
+    fs = load_feature_mat(
+        FEATURES / ACTIVITIES[activity],
+        n_frames=600,
+        frame_selection="first",
+        drop_y_columns=3,
+        checksums=FEATURES / "SHA256SUMS",
+    )
     return {"X": fs.X, "Y": fs.Y, "heading_column": 2}
 
 
 def compare(before, after, protocol="contiguous"):
     """Print the mean error and largest |angle| per (activity, N, method) of two runs side by side."""
     res = ROOT / "benchmarks" / "results"
-    agg = {"error": ("error", "mean"), "max_abs_angle": ("max_abs_angle", "max"), "seeds": ("seed", "nunique")}
-    b, a = (pd.read_csv(res / f"{protocol}_{t}.csv").groupby(["activity", "n_train", "method"], sort=False)
-            .agg(**agg) for t in (before, after))
+    agg = {
+        "error": ("error", "mean"),
+        "max_abs_angle": ("max_abs_angle", "max"),
+        "seeds": ("seed", "nunique"),
+    }
+    b, a = (
+        pd.read_csv(res / f"{protocol}_{t}.csv")
+        .groupby(["activity", "n_train", "method"], sort=False)
+        .agg(**agg)
+        for t in (before, after)
+    )
     t = b.join(a, suffixes=("_before", "_after"), how="inner")
     t["change"] = t["error_after"] - t["error_before"]
-    cols = ["error_before", "error_after", "change", "max_abs_angle_before", "max_abs_angle_after", "seeds_after"]
+    cols = [
+        "error_before",
+        "error_after",
+        "change",
+        "max_abs_angle_before",
+        "max_abs_angle_after",
+        "seeds_after",
+    ]
     print(t[cols].to_markdown(floatfmt=".4g") if hasattr(t, "to_markdown") else t[cols].to_string())
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tag", help="name of the run (results/contiguous_<tag>.csv); required unless --compare")
+    ap.add_argument(
+        "--tag", help="name of the run (results/contiguous_<tag>.csv); required unless --compare"
+    )
     ap.add_argument("--activities", nargs="+", default=list(ACTIVITIES), choices=list(ACTIVITIES))
     ap.add_argument("--sizes", nargs="+", type=int, default=[30])
     ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--methods", nargs="+", default=None, help="keys of config.yaml's methods (default: run)")
+    ap.add_argument(
+        "--methods", nargs="+", default=None, help="keys of config.yaml's methods (default: run)"
+    )
     ap.add_argument("--pm-sweeps", nargs=2, type=int, default=None, metavar=("N_ITER", "N_BURN_IN"))
-    ap.add_argument("--protocol", default="contiguous", choices=["contiguous", "random"],
-                    help="split protocol (random: the paper's, to see how its tables move)")
+    ap.add_argument(
+        "--protocol",
+        default="contiguous",
+        choices=["contiguous", "random"],
+        help="split protocol (random: the paper's, to see how its tables move)",
+    )
     ap.add_argument("--compare", nargs=2, metavar=("TAG_BEFORE", "TAG_AFTER"), default=None)
     args = ap.parse_args(argv)
     if args.compare:
@@ -86,28 +119,50 @@ def main(argv=None):
                         params = dict(spec_m.get("params") or {})
                         if m == "PM" and args.pm_sweeps:
                             params.update(n_iter=args.pm_sweeps[0], n_burn_in=args.pm_sweeps[1])
-                        spec = JobSpec(source="hsc", activity=activity, method=m, n_train=n, seed=seed,
-                                       protocol=args.protocol, pose_transform=cfg["pose_transform"],
-                                       min_test=cfg["min_test"], gap=cfg["gap"])
+                        spec = JobSpec(
+                            source="hsc",
+                            activity=activity,
+                            method=m,
+                            n_train=n,
+                            seed=seed,
+                            protocol=args.protocol,
+                            pose_transform=cfg["pose_transform"],
+                            min_test=cfg["min_test"],
+                            gap=cfg["gap"],
+                        )
                         t0 = time.perf_counter()
-                        row, arrays = run_job(spec, features, estimator=spec_m["estimator"], params=params)
+                        row, arrays = run_job(
+                            spec, features, estimator=spec_m["estimator"], params=params
+                        )
                         yp = np.asarray(arrays["y_pred"])
-                        rows.append({
-                            "activity": activity, "n_train": n, "seed": seed, "method": spec_m["label"],
-                            "error": row["error"], "max_abs_angle": float(np.max(np.abs(yp))),
-                            "frac_rows_over_1000": float(np.mean(np.max(np.abs(yp), axis=1) > 1000)),
-                            "seconds": time.perf_counter() - t0,
-                        })
+                        rows.append(
+                            {
+                                "activity": activity,
+                                "n_train": n,
+                                "seed": seed,
+                                "method": spec_m["label"],
+                                "error": row["error"],
+                                "max_abs_angle": float(np.max(np.abs(yp))),
+                                "frac_rows_over_1000": float(
+                                    np.mean(np.max(np.abs(yp), axis=1) > 1000)
+                                ),
+                                "seconds": time.perf_counter() - t0,
+                            }
+                        )
                         r = rows[-1]
-                        print(f"{activity} N={n} seed={seed} {r['method']:5s} error {r['error']:7.2f} "
-                              f"max|angle| {r['max_abs_angle']:.3g} ({r['seconds']:.1f} s)", flush=True)
+                        print(
+                            f"{activity} N={n} seed={seed} {r['method']:5s} error {r['error']:7.2f} "
+                            f"max|angle| {r['max_abs_angle']:.3g} ({r['seconds']:.1f} s)",
+                            flush=True,
+                        )
     df = pd.DataFrame(rows)
     out = ROOT / "benchmarks" / "results" / f"{args.protocol}_{args.tag}.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
         df.to_csv(tmp, index=False)
     summary = df.groupby(["activity", "n_train", "method"], sort=False).agg(
-        error=("error", "mean"), max_abs_angle=("max_abs_angle", "max"))
+        error=("error", "mean"), max_abs_angle=("max_abs_angle", "max")
+    )
     print(summary.to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"wrote {out}")
 

@@ -26,17 +26,17 @@ import os
 for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from bsrbench.datasets import load_feature_mat  # noqa: E402
-from bsrbench.models.bsr import BayesianSR  # noqa: E402
-from bsrbench.poses import get_pose_transform  # noqa: E402
-from bsrbench.seeds import derive_seed, split_seed  # noqa: E402
-from bsrbench.study import make_split  # noqa: E402
+from bsrbench.datasets import load_feature_mat
+from bsrbench.models.bsr import BayesianSR
+from bsrbench.poses import get_pose_transform
+from bsrbench.seeds import derive_seed, split_seed
+from bsrbench.study import make_split
 
 ROOT = Path(__file__).resolve().parents[1]
 SETTINGS = [
@@ -61,9 +61,16 @@ SETTINGS = [
 def golf_training_set(n_train=30, seed=0, centred=True):
     """Training pairs of the paper protocol's split; ``centred=False``: standardized with all 600 frames' mean and
     std (the estimator then runs with standardize=False), so the training pairs are not centred."""
-    fs = load_feature_mat(ROOT / "resources/paper-features/x63.mat", n_frames=600, frame_selection="first",
-                          drop_y_columns=3, checksums=ROOT / "resources/paper-features/SHA256SUMS")
-    train, _ = make_split(fs.X.shape[0], n_train, protocol="random", seed=split_seed("hsc", "golf", n_train, seed))
+    fs = load_feature_mat(
+        ROOT / "resources/paper-features/x63.mat",
+        n_frames=600,
+        frame_selection="first",
+        drop_y_columns=3,
+        checksums=ROOT / "resources/paper-features/SHA256SUMS",
+    )
+    train, _ = make_split(
+        fs.X.shape[0], n_train, protocol="random", seed=split_seed("hsc", "golf", n_train, seed)
+    )
     Y_all = get_pose_transform("heading", column=2).forward(fs.Y)
     X, Y = fs.X[train], Y_all[train]
     if not centred:
@@ -82,33 +89,55 @@ def main(argv=None):
     X, Y = golf_training_set(args.n_train)
     data = {True: (X, Y), False: golf_training_set(args.n_train, centred=False)}
     for centred, (Xc, Yc) in data.items():
-        V = np.hstack([Xc, Yc]) if not centred else np.hstack([(X - X.mean(0)) / X.std(0).clip(1e-300),
-                                                              (Y - Y.mean(0)) / np.where(Y.std(0) > 0, Y.std(0), 1)])
+        V = (
+            np.hstack([Xc, Yc])
+            if not centred
+            else np.hstack(
+                [
+                    (X - X.mean(0)) / X.std(0).clip(1e-300),
+                    (Y - Y.mean(0)) / np.where(Y.std(0) > 0, Y.std(0), 1),
+                ]
+            )
+        )
         sv = np.linalg.svd(V, compute_uv=False)
-        print(f"golf (hsc), N = {X.shape[0]}, Mx = {X.shape[1]}, My = {Y.shape[1]}; standardized training pairs "
-              f"{'centred on the training set' if centred else 'with the 600 frames statistics'}: smallest singular "
-              f"value / largest = {sv[-1] / sv[0]:.2g}")
+        print(
+            f"golf (hsc), N = {X.shape[0]}, Mx = {X.shape[1]}, My = {Y.shape[1]}; standardized training pairs "
+            f"{'centred on the training set' if centred else 'with the 600 frames statistics'}: smallest singular "
+            f"value / largest = {sv[-1] / sv[0]:.2g}"
+        )
     at = [s for s in (10, 50, 100, 200, 300, 500, 1000, 1500, 2000, 3000, 5000) if s <= args.sweeps]
     nm = X.shape[0] * (X.shape[1] + Y.shape[1])
-    print("g_xy at sweep " + ", ".join(map(str, at)) + "; then, over the last 20% of sweeps: median g_s, active"
-          " atoms, log-lik per entry, mean c(g) (see the docstring)")
+    print(
+        "g_xy at sweep "
+        + ", ".join(map(str, at))
+        + "; then, over the last 20% of sweeps: median g_s, active"
+        " atoms, log-lik per entry, mean c(g) (see the docstring)"
+    )
     for name, params in SETTINGS:
         for chain in range(args.chains):
             t0 = time.perf_counter()
             Xc, Yc = data[params.get("standardize", True)]
-            m = BayesianSR(n_iter=args.sweeps, n_burn_in=args.sweeps - 1, thin=1,
-                           random_state=derive_seed("gxy_drift", name, chain), **params).fit(Xc, Yc)
+            m = BayesianSR(
+                n_iter=args.sweeps,
+                n_burn_in=args.sweeps - 1,
+                thin=1,
+                random_state=derive_seed("gxy_drift", name, chain),
+                **params,
+            ).fit(Xc, Yc)
             tr = m.trace_
             g = " ".join(f"{tr['g_xy'][s - 1]:9.3g}" for s in at)
             tail = slice(-max(args.sweeps // 5, 1), None)
             # the trace holds g_xy after the sweep and the log-likelihood at it: g ||R||^2 = NM log(g / 2 pi) - 2 ll
             g_rr = nm * np.log(tr["g_xy"] / (2 * np.pi)) - 2 * tr["log_likelihood"]
             c = 0.5 * (nm - g_rr)
-            print(f"{name:24s} chain {chain}: {g} | g_s {np.median(tr['g_s'][tail]):7.3g}, "
-                  f"active {np.median(tr['active_atoms'][tail]):4.0f}, "
-                  f"ll/entry {np.median(tr['log_likelihood'][tail]) / nm:6.2f}, c {np.mean(c[tail]):7.1f}, "
-                  f"b_xy g_xy {float(m.b0 if m.b_xy is None else m.b_xy) * np.mean(tr['g_xy'][tail]):7.1f}"
-                  f"  ({time.perf_counter() - t0:.1f} s)", flush=True)
+            print(
+                f"{name:24s} chain {chain}: {g} | g_s {np.median(tr['g_s'][tail]):7.3g}, "
+                f"active {np.median(tr['active_atoms'][tail]):4.0f}, "
+                f"ll/entry {np.median(tr['log_likelihood'][tail]) / nm:6.2f}, c {np.mean(c[tail]):7.1f}, "
+                f"b_xy g_xy {float(m.b0 if m.b_xy is None else m.b_xy) * np.mean(tr['g_xy'][tail]):7.1f}"
+                f"  ({time.perf_counter() - t0:.1f} s)",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

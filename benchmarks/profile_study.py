@@ -72,7 +72,9 @@ def run_wall_seconds(log):
         if (m := STAMP.match(line))
     ]
     if len(stamps) < 2:
-        raise ValueError(f"{log}: expected Snakemake's time stamps ('[Mon Nov 30 12:17:05 2026]'), found {len(stamps)}")
+        raise ValueError(
+            f"{log}: expected Snakemake's time stamps ('[Mon Nov 30 12:17:05 2026]'), found {len(stamps)}"
+        )
     return (max(stamps) - min(stamps)).total_seconds()
 
 
@@ -94,16 +96,22 @@ def main():
         acc[1] += job_seconds(tsv)
         if rel.parts[0] in ("cv", "fit"):
             acc[2] += model_seconds(args.results, rel)
-    for tsv in sorted(Path("logs/features").rglob("*.benchmark.tsv")) + sorted(Path("logs/mocap").rglob("*.benchmark.tsv")):
+    for tsv in sorted(Path("logs/features").rglob("*.benchmark.tsv")) + sorted(
+        Path("logs/mocap").rglob("*.benchmark.tsv")
+    ):
         acc = rows["features and poses"]
         acc[0] += 1
         acc[1] += job_seconds(tsv)
     total_job = sum(r[1] for r in rows.values())
-    print("| jobs of kind | n | job wall s | model s | overhead s | overhead per job s | share of job wall |")
+    print(
+        "| jobs of kind | n | job wall s | model s | overhead s | overhead per job s | share of job wall |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|")
     for kind, (n, wall, model) in sorted(rows.items(), key=lambda kv: -kv[1][1]):
         over = wall - model if model else float("nan")
-        print(f"| {kind} | {n} | {wall:.0f} | {model:.0f} | {over:.0f} | {over / n:.2f} | {wall / total_job:.1%} |")
+        print(
+            f"| {kind} | {n} | {wall:.0f} | {model:.0f} | {over:.0f} | {over / n:.2f} | {wall / total_job:.1%} |"
+        )
     n_all = sum(r[0] for r in rows.values())
     model_all = sum(r[2] for r in rows.values())
     print(f"| all | {n_all} | {total_job:.0f} | {model_all:.0f} | | | |")

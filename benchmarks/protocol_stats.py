@@ -46,7 +46,12 @@ from bsrbench.seeds import derive_seed
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results"
 CACHE = OUT / "protocol_stats_cache"
-HSC = {"run": "x09.mat", "michael_jackson": "x131.mat", "acrobatics": "x4921.mat", "golf": "x63.mat"}
+HSC = {
+    "run": "x09.mat",
+    "michael_jackson": "x131.mat",
+    "acrobatics": "x4921.mat",
+    "golf": "x63.mat",
+}
 MOCAP = ["run", "michael_jackson", "kick_soccer_ball", "walk"]
 MAPPING = {"daz": "x09_mapping.csv", "3dsmax": "x131_mapping.csv"}
 
@@ -64,7 +69,9 @@ def nn1(X, Y, heading_column, name, n_train=30, seeds=10):
     H = HeadingTransform(column=heading_column)
     errs = []
     for s in range(seeds):
-        perm = np.random.default_rng(derive_seed("protocol_stats", name, n_train, s)).permutation(len(X))
+        perm = np.random.default_rng(derive_seed("protocol_stats", name, n_train, s)).permutation(
+            len(X)
+        )
         tr, te = perm[:n_train], perm[n_train:]
         m = NearestNeighbourRegressor(n_neighbors=1).fit(X[tr], H.forward(Y[tr]))
         errs.append(mean_angle_error(Y[te], H.inverse(m.predict(X[te]))))
@@ -75,8 +82,14 @@ def their_convention(motion_npz):
     """The prepared motion's poses as the authors' 57 angles (via the fitted joint mapping)."""
     with np.load(motion_npz) as z:
         files, kind = [str(f) for f in z["files"]], str(z["skeleton_kind"])
-        tidx, tfr, pose_joints = z["trial_index"], z["trial_frames"], [str(j) for j in z["pose_joints"]]
-    A, B, our_joints, mkind = load_angle_mapping(ROOT / "resources" / "paper-features" / "alignment" / MAPPING[kind])
+        tidx, tfr, pose_joints = (
+            z["trial_index"],
+            z["trial_frames"],
+            [str(j) for j in z["pose_joints"]],
+        )
+    A, B, our_joints, mkind = load_angle_mapping(
+        ROOT / "resources" / "paper-features" / "alignment" / MAPPING[kind]
+    )
     assert mkind == kind and our_joints == pose_joints, (mkind, kind, our_joints, pose_joints)
     R = np.empty((len(tidx), len(HSC_ROLE_ORDER), 3, 3))
     for k, f in enumerate(files):
@@ -97,8 +110,15 @@ def main():
     for a, f in HSC.items():
         d = sio.loadmat(ROOT / "resources" / "paper-features" / f)
         X, Y = np.asarray(d["X"][:600], float), np.asarray(d["Y"][:600, 3:], float)
-        r = {"source": "hsc", "activity": a, "protocol": "first 600 rows (unchanged)", "frames": len(Y),
-             "spread": spread(Y), "change": change(Y), "nn1_n30": nn1(X, Y, 2, f"hsc/{a}")}
+        r = {
+            "source": "hsc",
+            "activity": a,
+            "protocol": "first 600 rows (unchanged)",
+            "frames": len(Y),
+            "spread": spread(Y),
+            "change": change(Y),
+            "nn1_n30": nn1(X, Y, 2, f"hsc/{a}"),
+        }
         rows.append(r)
         print(r, flush=True)
         aligned = ROOT / "resources" / "paper-features" / "alignment" / f"{Path(f).stem}_rows.csv"
@@ -106,8 +126,15 @@ def main():
             m = pd.read_csv(aligned, dtype={"trial": str})
             k = m.loc[m["frame_120fps"] >= 0, "row"].to_numpy()
             X, Y = np.asarray(d["X"][k], float), np.asarray(d["Y"][k, 3:], float)
-            r = {"source": "hsc", "activity": a, "protocol": "rows matched to the trials here", "frames": len(Y),
-                 "spread": spread(Y), "change": change(Y), "nn1_n30": nn1(X, Y, 2, f"hsc/{a}/aligned")}
+            r = {
+                "source": "hsc",
+                "activity": a,
+                "protocol": "rows matched to the trials here",
+                "frames": len(Y),
+                "spread": spread(Y),
+                "change": change(Y),
+                "nn1_n30": nn1(X, Y, 2, f"hsc/{a}/aligned"),
+            }
             rows.append(r)
             print(r, flush=True)
     CACHE.mkdir(parents=True, exist_ok=True)
@@ -115,21 +142,48 @@ def main():
         e = dcfg["datasets"]["mocap"][a]
         for label, opts in (
             ("before", {"frame_step": 1, "frame_selection": "spread", "fewer_frames": "error"}),
-            ("after", {"frame_step": e.get("frame_step", 1), "frame_selection": e["frame_selection"],
-                       "fewer_frames": e.get("fewer_frames", "error")}),
+            (
+                "after",
+                {
+                    "frame_step": e.get("frame_step", 1),
+                    "frame_selection": e["frame_selection"],
+                    "fewer_frames": e.get("fewer_frames", "error"),
+                },
+            ),
         ):
             mpath, fpath = CACHE / f"{a}_{label}_motion.npz", CACHE / f"{a}_{label}_features.npz"
-            prepare_motion([ROOT / p for p in e["files"]], mpath, n_frames=e["n_frames"],
-                           skip_frames=e["skip_frames"], checksums=ROOT / e["checksums"], **opts)
-            fs = compute_mocap_features(mpath, codebook, fpath, render=fcfg["render"],
-                                        n_points=fcfg["shape_context"]["n_points"], soft=fcfg["histogram"]["soft"],
-                                        seed=fcfg["seed"], name=f"mocap/{a}")
+            prepare_motion(
+                [ROOT / p for p in e["files"]],
+                mpath,
+                n_frames=e["n_frames"],
+                skip_frames=e["skip_frames"],
+                checksums=ROOT / e["checksums"],
+                **opts,
+            )
+            fs = compute_mocap_features(
+                mpath,
+                codebook,
+                fpath,
+                render=fcfg["render"],
+                n_points=fcfg["shape_context"]["n_points"],
+                soft=fcfg["histogram"]["soft"],
+                seed=fcfg["seed"],
+                name=f"mocap/{a}",
+            )
             Y = fs.Y
             Yt = their_convention(mpath)
-            r = {"source": "mocap", "activity": a, "protocol": label, "frames": len(Y), "spread": spread(Y),
-                 "change": change(Y), "nn1_n30": nn1(fs.X, Y, int(fs.meta["heading_column"]), f"mocap/{a}"),
-                 "spread_their_convention": spread(Yt), "change_their_convention": change(Yt),
-                 "nn1_n30_their_convention": nn1(fs.X, Yt, 2, f"mocap/{a}")}
+            r = {
+                "source": "mocap",
+                "activity": a,
+                "protocol": label,
+                "frames": len(Y),
+                "spread": spread(Y),
+                "change": change(Y),
+                "nn1_n30": nn1(fs.X, Y, int(fs.meta["heading_column"]), f"mocap/{a}"),
+                "spread_their_convention": spread(Yt),
+                "change_their_convention": change(Yt),
+                "nn1_n30_their_convention": nn1(fs.X, Yt, 2, f"mocap/{a}"),
+            }
             rows.append(r)
             print(r, flush=True)
     df = pd.DataFrame(rows)

@@ -110,13 +110,23 @@ def descriptors(name, rows, cfg, azimuth=None, n_points=None):
     P, parents, names = positions_of(rows)
     t0 = time.perf_counter()
     masks = render_silhouettes(P, parents, names, **render_kwargs(cfg, az))
-    d = silhouette_descriptors(masks, n_points=k, seed=derive_seed("same_frames", name, cfg["seed"]))
-    print(f"{name}: rendered and described {len(masks)} silhouettes (azimuth {az:g}, {k} points) in "
-          f"{time.perf_counter() - t0:.0f} s", flush=True)
+    d = silhouette_descriptors(
+        masks, n_points=k, seed=derive_seed("same_frames", name, cfg["seed"])
+    )
+    print(
+        f"{name}: rendered and described {len(masks)} silhouettes (azimuth {az:g}, {k} points) in "
+        f"{time.perf_counter() - t0:.0f} s",
+        flush=True,
+    )
     CACHE.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
-        np.savez_compressed(tmp, rows=rows["row"].to_numpy(), counts=np.array([len(x) for x in d]),
-                            descriptors=np.vstack(d), masks=masks)
+        np.savez_compressed(
+            tmp,
+            rows=rows["row"].to_numpy(),
+            counts=np.array([len(x) for x in d]),
+            descriptors=np.vstack(d),
+            masks=masks,
+        )
     return d, masks
 
 
@@ -134,9 +144,13 @@ def feature_sets(name, rows, variants, codebook, cfg):
         elif v == "theirs_unit":
             out[v] = Xt / Xt.sum(1, keepdims=True) * 200.0
         elif v.startswith("az"):
-            out[v] = histogram_features(descriptors(name, rows, cfg, azimuth=float(v[2:]))[0], codebook, soft=soft)
+            out[v] = histogram_features(
+                descriptors(name, rows, cfg, azimuth=float(v[2:]))[0], codebook, soft=soft
+            )
         elif v.startswith("pts"):
-            out[v] = histogram_features(descriptors(name, rows, cfg, n_points=int(v[3:]))[0], codebook, soft=soft)
+            out[v] = histogram_features(
+                descriptors(name, rows, cfg, n_points=int(v[3:]))[0], codebook, soft=soft
+            )
         else:
             raise SystemExit(f"unknown variant {v!r}")
     return out
@@ -152,32 +166,65 @@ def run(files, variants, sizes, seeds, cv, only=None, azimuth=None):
     rows_out = []
     for name in files:
         rows = matched_rows(name)
-        Y = np.asarray(sio.loadmat(FEATURES / f"{name}.mat")["Y"], dtype=float)[rows["row"].to_numpy(), 3:]
+        Y = np.asarray(sio.loadmat(FEATURES / f"{name}.mat")["Y"], dtype=float)[
+            rows["row"].to_numpy(), 3:
+        ]
         sets = feature_sets(name, rows, variants, codebook, cfg)
         M = len(rows)
         for n_train in sizes:
             for seed in seeds:
-                perm = np.random.default_rng(derive_seed("same_frames", name, n_train, seed)).permutation(M)
+                perm = np.random.default_rng(
+                    derive_seed("same_frames", name, n_train, seed)
+                ).permutation(M)
                 tr, te = perm[:n_train], perm[n_train:]
                 for fs, X in sets.items():
                     for mname, est, grid in methods():
                         if only and mname not in only:
                             continue
-                        res = tune(est, grid, X[tr], Y[tr], cv=cv, random_state=derive_seed("cv", name, n_train, seed),
-                                   pose_transform=H, n_jobs=1)
+                        res = tune(
+                            est,
+                            grid,
+                            X[tr],
+                            Y[tr],
+                            cv=cv,
+                            random_state=derive_seed("cv", name, n_train, seed),
+                            pose_transform=H,
+                            n_jobs=1,
+                        )
                         model = sklearn.clone(est).set_params(**res.best_params)
                         model.fit(X[tr], H.forward(Y[tr]))
                         err = mean_angle_error(Y[te], H.inverse(model.predict(X[te])))
-                        az = (float(fs[2:]) if fs.startswith("az") else cfg["render"]["view_azimuth_deg"]) \
-                            if fs.startswith(("az", "ours", "pts")) else np.nan
-                        rows_out.append({"file": name, "activity": FILES[name], "features": fs, "method": mname,
-                                         "azimuth_deg": az,
-                                         "n_train": n_train, "seed": seed, "n_rows": M, "error_deg": err,
-                                         "best_params": json.dumps(res.best_params, sort_keys=True)})
-                print(f"{name} N={n_train} seed={seed}: " + ", ".join(
-                    f"{r['features']}/{r['method']} {r['error_deg']:.2f}"
-                    for r in rows_out[-len(sets) * (len(only) if only else 3):]),
-                    flush=True)
+                        az = (
+                            (
+                                float(fs[2:])
+                                if fs.startswith("az")
+                                else cfg["render"]["view_azimuth_deg"]
+                            )
+                            if fs.startswith(("az", "ours", "pts"))
+                            else np.nan
+                        )
+                        rows_out.append(
+                            {
+                                "file": name,
+                                "activity": FILES[name],
+                                "features": fs,
+                                "method": mname,
+                                "azimuth_deg": az,
+                                "n_train": n_train,
+                                "seed": seed,
+                                "n_rows": M,
+                                "error_deg": err,
+                                "best_params": json.dumps(res.best_params, sort_keys=True),
+                            }
+                        )
+                print(
+                    f"{name} N={n_train} seed={seed}: "
+                    + ", ".join(
+                        f"{r['features']}/{r['method']} {r['error_deg']:.2f}"
+                        for r in rows_out[-len(sets) * (len(only) if only else 3) :]
+                    ),
+                    flush=True,
+                )
     return pd.DataFrame(rows_out)
 
 
@@ -201,8 +248,12 @@ def main():
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--cv", type=int, default=5)
     ap.add_argument("--methods", nargs="+", default=None, choices=["1-NN", "SR", "TGP"])
-    ap.add_argument("--azimuth", type=float, default=None,
-                    help="camera azimuth of the ours* and pts* variants (default: config/datasets.yaml)")
+    ap.add_argument(
+        "--azimuth",
+        type=float,
+        default=None,
+        help="camera azimuth of the ours* and pts* variants (default: config/datasets.yaml)",
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "tables" / "same_frames.csv")
     a = ap.parse_args()
     with threadpool_limits(1):

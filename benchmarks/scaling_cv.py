@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import yaml
+from contiguous_offrange import ACTIVITIES, load
 from sklearn.model_selection import KFold
 from threadpoolctl import threadpool_limits
 
@@ -29,8 +30,6 @@ from bsrbench.metrics import mean_angle_error
 from bsrbench.models import scaling
 from bsrbench.poses import HeadingTransform
 from bsrbench.study import JobSpec, make_estimator
-
-from contiguous_offrange import ACTIVITIES, load
 
 ROOT = Path(__file__).resolve().parents[1]
 SCALINGS = ("pooled", "bin", "none", "bin-nofloor")
@@ -63,7 +62,9 @@ def main(argv=None):
     ap.add_argument("--sizes", nargs="+", type=int, default=[30, 100])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--methods", nargs="+", default=["Ridge", "PM", "TGP"])
-    ap.add_argument("--pm-sweeps", nargs=2, type=int, default=[150, 100], metavar=("N_ITER", "N_BURN_IN"))
+    ap.add_argument(
+        "--pm-sweeps", nargs=2, type=int, default=[150, 100], metavar=("N_ITER", "N_BURN_IN")
+    )
     ap.add_argument("--folds", type=int, default=5)
     args = ap.parse_args(argv)
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -74,12 +75,22 @@ def main(argv=None):
             f = load(activity)
             for n in args.sizes:
                 for seed in range(args.seeds):
-                    spec = JobSpec(source="hsc", activity=activity, method="-", n_train=n, seed=seed,
-                                   protocol="contiguous", min_test=cfg["min_test"], gap=cfg["gap"])
+                    spec = JobSpec(
+                        source="hsc",
+                        activity=activity,
+                        method="-",
+                        n_train=n,
+                        seed=seed,
+                        protocol="contiguous",
+                        min_test=cfg["min_test"],
+                        gap=cfg["gap"],
+                    )
                     train, _ = spec.split(f["X"].shape[0])  # the test frames are not touched
                     X, Y = f["X"][train], f["Y"][train]
                     for cv_kind, shuffle in (("blocked", False), ("shuffled", True)):
-                        folds = KFold(args.folds, shuffle=shuffle, random_state=seed if shuffle else None)
+                        folds = KFold(
+                            args.folds, shuffle=shuffle, random_state=seed if shuffle else None
+                        )
                         for method in args.methods:
                             if method != "Ridge" and cv_kind == "shuffled":
                                 continue  # the shuffled CV only for the cheap method
@@ -87,20 +98,44 @@ def main(argv=None):
                                 t0 = time.perf_counter()
                                 errs = []
                                 for k, (tr, va) in enumerate(folds.split(X)):
-                                    P = fit_predict(method, cfg, kind, X[tr], tf.forward(Y[tr]), X[va],
-                                                    1000 * seed + k, args.pm_sweeps)
+                                    P = fit_predict(
+                                        method,
+                                        cfg,
+                                        kind,
+                                        X[tr],
+                                        tf.forward(Y[tr]),
+                                        X[va],
+                                        1000 * seed + k,
+                                        args.pm_sweeps,
+                                    )
                                     errs.append(mean_angle_error(Y[va], tf.inverse(P)))
-                                rows.append({"activity": activity, "n_train": n, "seed": seed, "cv": cv_kind,
-                                             "method": method, "scaling": kind, "error": float(np.mean(errs)),
-                                             "seconds": time.perf_counter() - t0})
-                                print(f"{activity} N={n} seed={seed} {cv_kind} {method} {kind}: "
-                                      f"{rows[-1]['error']:.2f} ({rows[-1]['seconds']:.1f} s)", flush=True)
+                                rows.append(
+                                    {
+                                        "activity": activity,
+                                        "n_train": n,
+                                        "seed": seed,
+                                        "cv": cv_kind,
+                                        "method": method,
+                                        "scaling": kind,
+                                        "error": float(np.mean(errs)),
+                                        "seconds": time.perf_counter() - t0,
+                                    }
+                                )
+                                print(
+                                    f"{activity} N={n} seed={seed} {cv_kind} {method} {kind}: "
+                                    f"{rows[-1]['error']:.2f} ({rows[-1]['seconds']:.1f} s)",
+                                    flush=True,
+                                )
     df = pd.DataFrame(rows)
     out = ROOT / "benchmarks" / "results" / "scaling_cv.csv"
     with atomic_path(out) as tmp:
         df.to_csv(tmp, index=False)
-    table = df.pivot_table(index=["cv", "method", "n_train", "activity"], columns="scaling", values="error",
-                           aggfunc="mean")
+    table = df.pivot_table(
+        index=["cv", "method", "n_train", "activity"],
+        columns="scaling",
+        values="error",
+        aggfunc="mean",
+    )
     print(table.to_string(float_format=lambda v: f"{v:.2f}"))
     print(f"wrote {out}")
 

@@ -115,7 +115,9 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=None, b_xy=None, sepa
     if separate:
         prec[4] = rng.gamma(a_xy + N * Mx / 2, 1.0 / (b_xy + 0.5 * np.sum(R[:, :Mx] ** 2)))
         if M > Mx:
-            prec[5] = rng.gamma(a_xy + N * (M - Mx) / 2, 1.0 / (b_xy + 0.5 * np.sum(R[:, Mx:] ** 2)))
+            prec[5] = rng.gamma(
+                a_xy + N * (M - Mx) / 2, 1.0 / (b_xy + 0.5 * np.sum(R[:, Mx:] ** 2))
+            )
             prec[1] = M / (Mx / prec[4] + (M - Mx) / prec[5])
         else:
             prec[1] = prec[4]
@@ -156,11 +158,16 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio="exact", w_mean=0.0):
         if ratio in ("printed", "literal"):
             lr = np.sum(log_sigmoid(z * wp) - log_sigmoid(z * w)) - lam @ (wp - w)
         else:
+
             def log_q(x, m):  # log N(x; m, Sigma) up to a constant
                 return -0.5 * (x - m) @ Sigma_inv @ (x - m)
 
-            lr = (log_target_w(wp, z, Sigma_inv, w_mean) - log_target_w(w, z, Sigma_inv, w_mean)
-                  + log_q(w, mup) - log_q(wp, mu))
+            lr = (
+                log_target_w(wp, z, Sigma_inv, w_mean)
+                - log_target_w(w, z, Sigma_inv, w_mean)
+                + log_q(w, mup)
+                - log_q(wp, mu)
+            )
         if np.log(U[k]) < lr:
             W[:, k] = wp
             accepted += 1
@@ -212,7 +219,9 @@ def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
     if w_update == "ess":
         acc = update_w_ess(W, B, Lw, rng, w_mean)
     else:
-        ratio = {"mh": "exact", "paper-printed-ratio": "printed", "paper-literal": "literal"}[w_update]
+        ratio = {"mh": "exact", "paper-printed-ratio": "printed", "paper-literal": "literal"}[
+            w_update
+        ]
         acc = update_w_mh(W, B, Sigma, Lw, rng, ratio, w_mean)
     loglik = 0.0
     for cols, g in ((slice(0, Mx), prec[4]), (slice(Mx, None), prec[5])):
@@ -310,7 +319,9 @@ def predict_draws(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, n_sweeps, seed):
                     tau = gs[l] + gxy[l] * d @ d
                     mu = gxy[l] * d @ r_minus / tau
                     logit = wt[k] + 0.5 * np.log(gs[l] / tau) + 0.5 * tau * mu**2
-                    if logit > 37.0 or rs.uniform() < sigmoid(logit):  # P(on) = 1 in float64: no draw
+                    if logit > 37.0 or rs.uniform() < sigmoid(
+                        logit
+                    ):  # P(on) = 1 in float64: no draw
                         alpha[k] = mu + rs.normal() / np.sqrt(tau)
                     else:
                         alpha[k] = 0.0

@@ -11,11 +11,10 @@ import subprocess
 import numpy as np
 import pandas as pd
 import pytest
+from test_workflow import copy_tree, smk
 
 from bsrbench.reporting.published import main as published_main
 from bsrbench.study import chain_seed
-
-from test_workflow import ROOT, copy_tree, smk
 
 ABLATION = ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")
 
@@ -31,14 +30,23 @@ def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
     assert int(counts["fit_chain"]) == variants * 4 * splits
     assert int(counts["pool_chains"]) == variants * splits
     assert int(counts["fit"]) == 3 * splits  # 1-NN, TGP, SR
-    assert "seed100" in out and "seed0." not in out  # splits disjoint from the paper protocol's seeds 0-9
+    assert (
+        "seed100" in out and "seed0." not in out
+    )  # splits disjoint from the paper protocol's seeds 0-9
 
 
 @pytest.mark.slow  # a DAG of about 1,800 jobs
 def test_goal_overlay_runs_the_chosen_variants_on_the_paper_protocols_splits(tmp_path):
     """config/paper-goal.yaml tests variants chosen on seeds 100-104 on the paper protocol's seeds 0-9."""
-    res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", "config/paper-goal.yaml",
-              cwd=copy_tree(tmp_path))
+    res = smk(
+        "-n",
+        "--cores",
+        "2",
+        "--configfile",
+        "config/ablation.yaml",
+        "config/paper-goal.yaml",
+        cwd=copy_tree(tmp_path),
+    )
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
@@ -61,13 +69,29 @@ def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
     assert len(df) == 5 and set(df["seed"]) == {100}
     pm = df[df["method"].isin(["PM", "PMK16", "PMj3"])]
     assert (pm["n_chains"] == 2).all()
-    for col in ("r_hat_log_likelihood", "r_hat_g_xy", "r_hat_g_s", "ess_bulk_log_likelihood", "ess_bulk_g_xy"):
+    for col in (
+        "r_hat_log_likelihood",
+        "r_hat_g_xy",
+        "r_hat_g_s",
+        "ess_bulk_log_likelihood",
+        "ess_bulk_g_xy",
+    ):
         assert pm[col].notna().all() and (pm[col] > 0).all(), col
     assert df.loc[df["method"].isin(["NN1", "Ridge"]), "r_hat_g_xy"].isna().all()
     row = pm[pm["method"] == "PM"].iloc[0]
     seeds = json.loads(row["chain_seeds"])
     assert seeds == [chain_seed(int(row["method_seed"]), c) for c in range(2)]
-    d = ablation_run / "results" / "ablation-ci" / "fit" / "contiguous" / "hsc" / "golf" / "PM" / "n30"
+    d = (
+        ablation_run
+        / "results"
+        / "ablation-ci"
+        / "fit"
+        / "contiguous"
+        / "hsc"
+        / "golf"
+        / "PM"
+        / "n30"
+    )
     chains = [np.load(d / "seed100" / f"chain{c}.npz") for c in range(2)]
     pooled = np.load(d / "seed100.npz")
     np.testing.assert_array_equal(pooled["chain_trace_g_xy"][1], chains[1]["trace_g_xy"])
@@ -94,8 +118,14 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
     assert "the 2 methods of" in tex and "proper Gamma" not in tex, tex
     assert "this study ran only the contiguous protocol" in tex and "against the paper's" not in tex
     body = (ablation_run / "reports" / "ablation-ci" / "tables" / "body.tex").read_text()
-    assert "(contiguous protocol, as named in the panel titles; this study did not run the random one)" in body
-    assert "Filled markers: this study (dashed lines: contiguous protocol)" in body and "solid lines" not in body
+    assert (
+        "(contiguous protocol, as named in the panel titles; this study did not run the random one)"
+        in body
+    )
+    assert (
+        "Filled markers: this study (dashed lines: contiguous protocol)" in body
+        and "solid lines" not in body
+    )
     pdf = ablation_run / "reports" / "ablation-ci" / "report.pdf"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout
@@ -112,11 +142,21 @@ def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_
     readme = tmp_path / "README.md"
     readme.write_text("intro\n<!-- results-table:hsc -->\nold\n<!-- /results-table:hsc -->\nend\n")
     # the README shows the paper protocol's tables: another study's table does not replace them (it did, silently)
-    assert published_main(["readme", str(dest), "--protocol", "contiguous", "--update", str(readme)]) == 2
+    assert (
+        published_main(["readme", str(dest), "--protocol", "contiguous", "--update", str(readme)])
+        == 2
+    )
     assert "old" in readme.read_text()
-    as_paper = tmp_path / "published" / "paper.csv"  # the mechanics, on this table as if it were the paper's
+    as_paper = (
+        tmp_path / "published" / "paper.csv"
+    )  # the mechanics, on this table as if it were the paper's
     pub.assign(protocol="random").to_csv(as_paper, index=False)
-    assert published_main(["readme", str(as_paper), "--protocol", "contiguous", "--update", str(readme)]) == 2
+    assert (
+        published_main(
+            ["readme", str(as_paper), "--protocol", "contiguous", "--update", str(readme)]
+        )
+        == 2
+    )
     assert published_main(["readme", str(as_paper), "--update", str(readme)]) == 0
     text = readme.read_text()
     assert "old" not in text and text.startswith("intro\n") and text.endswith("end\n")
@@ -124,4 +164,6 @@ def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_
     errors = pub.set_index("method")["error"]
     best = errors.idxmin()
     assert f"**{errors[best]:.2f}**" in row and row.count("**") == 2
-    assert published_main(["readme", str(dest), "--protocol", "random"]) == 2  # no such rows: a clear error
+    assert (
+        published_main(["readme", str(dest), "--protocol", "random"]) == 2
+    )  # no such rows: a clear error

@@ -23,8 +23,16 @@ import pytest
 from bsrbench.datasets import load_feature_mat
 from bsrbench.errors import InputError
 from bsrbench.metrics import mean_angle_error
-from bsrbench.models import BayesianSR, DDL, RVM, SR, TGP, NearestNeighbourRegressor, RidgeRegressor
-from bsrbench.models import scaling
+from bsrbench.models import (
+    DDL,
+    RVM,
+    SR,
+    TGP,
+    BayesianSR,
+    NearestNeighbourRegressor,
+    RidgeRegressor,
+    scaling,
+)
 from bsrbench.poses import HeadingTransform
 from bsrbench.study import make_split
 
@@ -36,8 +44,15 @@ ESTIMATORS = {
     "TGP": lambda: TGP(init="ridge", max_iter=30),  # the ridge start is the one that exploded
     "SR": lambda: SR(alpha=1e-3),
     "DDL": lambda: DDL(n_components=40, alpha=0.03, max_iter=20, random_state=0),
-    "PM": lambda: BayesianSR(n_atoms=32, n_neighbors=5, n_iter=80, n_burn_in=50, thin=3, n_predict_sweeps=5,
-                             random_state=0),
+    "PM": lambda: BayesianSR(
+        n_atoms=32,
+        n_neighbors=5,
+        n_iter=80,
+        n_burn_in=50,
+        thin=3,
+        n_predict_sweeps=5,
+        random_state=0,
+    ),
     "1-NN": lambda: NearestNeighbourRegressor(n_neighbors=1),
     "Ridge": lambda: RidgeRegressor(alpha=10.0),
 }
@@ -64,9 +79,9 @@ def _assert_sane(name, Z, Ztr, tf, Ytr):
     lo, hi = Ztr.min(0), Ztr.max(0)
     w = hi - lo
     tol = 1e-9 * (1.0 + np.abs(Ztr).max())
-    assert np.all(Z >= lo - scaling.OUTPUT_MARGIN * w - tol) and np.all(Z <= hi + scaling.OUTPUT_MARGIN * w + tol), (
-        f"{name}: prediction outside the widened training range: {Z.min():.3g} .. {Z.max():.3g}"
-    )
+    assert np.all(Z >= lo - scaling.OUTPUT_MARGIN * w - tol) and np.all(
+        Z <= hi + scaling.OUTPUT_MARGIN * w + tol
+    ), f"{name}: prediction outside the widened training range: {Z.min():.3g} .. {Z.max():.3g}"
     Y = tf.inverse(Z)
     far = np.max(np.maximum(Y - Ytr.max(0), Ytr.min(0) - Y))
     assert far <= 360.0, f"{name}: a predicted angle lies {far:.3g} deg outside the training range"
@@ -122,8 +137,11 @@ def test_non_finite_test_input_is_a_clear_error(name, bad, split, fitted):
     Xte = split[2][:5].copy()
     Xte[3, 7] = bad
     kind = "NaN" if np.isnan(bad) else "infinity"
-    with pytest.raises(InputError, match=rf"{type(fitted[name]).__name__}\.predict: Input X contains {kind} "
-                                         r"at row 3, column 7"):
+    with pytest.raises(
+        InputError,
+        match=rf"{type(fitted[name]).__name__}\.predict: Input X contains {kind} "
+        r"at row 3, column 7",
+    ):
         fitted[name].predict(Xte)
 
 
@@ -134,8 +152,11 @@ def test_non_finite_training_output_is_a_clear_error(name, bad, split):
     Ztr[4, 2] = bad
     est = ESTIMATORS[name]()
     kind = "NaN" if np.isnan(bad) else "infinity"
-    with pytest.raises(InputError, match=rf"{type(est).__name__}\.fit: Input Y contains {kind} at row 4, column 2; "
-                                         r"expected finite outputs"):
+    with pytest.raises(
+        InputError,
+        match=rf"{type(est).__name__}\.fit: Input Y contains {kind} at row 4, column 2; "
+        r"expected finite outputs",
+    ):
         est.fit(Xtr, Ztr)
 
 
@@ -150,7 +171,9 @@ def test_input_scaler_rules_and_errors():
     assert np.allclose(binned.scale_, np.maximum(X.std(0), floor))
     raw = scaling.InputScaler("none").fit(X)
     assert np.array_equal(raw.transform(X), X)
-    with pytest.raises(InputError, match=r"input_scaling must be one of \['pooled', 'bin', 'none'\]; got 'per-bin'"):
+    with pytest.raises(
+        InputError, match=r"input_scaling must be one of \['pooled', 'bin', 'none'\]; got 'per-bin'"
+    ):
         scaling.InputScaler("per-bin").fit(X)
     with pytest.raises(InputError, match="input_scaling must be one of"):
         RidgeRegressor(input_scaling="std").fit(X, X[:, 0])

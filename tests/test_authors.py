@@ -58,7 +58,9 @@ def test_rest_rows_pose_a_t_pose_and_zero_angles_hang_the_arms():
         assert abs(wr[1] - sh[1]) < 1.0 and abs(wr[0] - sh[0]) > 20.0  # arm horizontal, sideways
         assert P[sk.index(f"{side}Ankle")][1] < -30.0  # legs down
     Z = hsc_positions(np.zeros(57))[0]
-    assert Z[sk.index("LeftWrist")][1] < Z[sk.index("LeftShoulder")][1] - 20.0  # their rest pose: arms down
+    assert (
+        Z[sk.index("LeftWrist")][1] < Z[sk.index("LeftShoulder")][1] - 20.0
+    )  # their rest pose: arms down
     with pytest.raises(InputError, match=r"expected rows of 57 angles"):
         hsc_positions(np.zeros(56))
     pos, parents = hsc_stick_figure(Y[5, 3:])
@@ -76,8 +78,9 @@ def test_canonical_euler_is_their_zxy_decomposition():
     assert np.all(np.abs(e[:, 1]) <= 90.0 + 1e-9)
     np.testing.assert_allclose(euler_matrix([2, 0, 1], e), R, atol=1e-9)
     # a knee bent by 120 degrees about x reads (180, 60, 180), as in the authors' rows
-    np.testing.assert_allclose(np.abs(canonical_euler(euler_matrix([0], [[120.0]]))[0]), [180.0, 60.0, 180.0],
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        np.abs(canonical_euler(euler_matrix([0], [[120.0]]))[0]), [180.0, 60.0, 180.0], atol=1e-9
+    )
 
 
 def test_fit_joint_rotations_recovers_planted_rotations():
@@ -130,7 +133,10 @@ def test_committed_mapping_reproduces_their_angles():
     # the mapping is a rotation-level fit: hsc_rotations of their rows are close to A R B
     Rt = hsc_rotations(theirs)
     k = HSC_ROLE_ORDER.index("LeftShoulder")
-    assert np.median(geodesic_deg(Rt[:, HSC_JOINTS.index("LeftShoulder")], A[k] @ R[:, k] @ B[k])) < 0.5
+    assert (
+        np.median(geodesic_deg(Rt[:, HSC_JOINTS.index("LeftShoulder")], A[k] @ R[:, k] @ B[k]))
+        < 0.5
+    )
 
 
 def test_mapping_file_round_trip_and_errors(tmp_path):

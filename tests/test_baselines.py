@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
 from sklearn.utils.estimator_checks import parametrize_with_checks
+from threadpoolctl import threadpool_limits
 
 from bsrbench.errors import InputError
 from bsrbench.models.ddl import DDL
@@ -19,6 +19,7 @@ def _one_blas_thread():
     oversubscribed BLAS threads make them many times slower."""
     with threadpool_limits(1):
         yield
+
 
 # small instances: fewer iterations so the generic checks stay fast
 CHECK_INSTANCES = [
@@ -121,7 +122,7 @@ def test_tgp_gradient_matches_finite_differences():
     for y in (Ytr[0] + 0.3 * rng.normal(size=d), rng.normal(size=d)):
         args = (Ytr, Ainv, u, 0.3, 1.01, 1.0)
         g = _kld_objective(y, *args)[1]
-        num = approx_fprime(y, lambda z: _kld_objective(z, *args)[0], 1e-6)
+        num = approx_fprime(y, lambda z, args=args: _kld_objective(z, *args)[0], 1e-6)
         assert np.linalg.norm(num - g) < 1e-4 * max(np.linalg.norm(g), 1e-3)
 
 
@@ -142,15 +143,19 @@ def test_one_nn_exact_on_training_points_and_knn_predict_time():
     m = NearestNeighbourRegressor().fit(X, Y)
     np.testing.assert_array_equal(m.predict(X), Y)
     Xt = rng.normal(size=(7, 5))
-    np.testing.assert_allclose(m.predict(Xt, n_neighbors=4), NearestNeighbourRegressor(4).fit(X, Y).predict(Xt))
-    np.testing.assert_array_equal(NearestNeighbourRegressor(3, weights="distance").fit(X, Y).predict(X), Y)
+    np.testing.assert_allclose(
+        m.predict(Xt, n_neighbors=4), NearestNeighbourRegressor(4).fit(X, Y).predict(Xt)
+    )
+    np.testing.assert_array_equal(
+        NearestNeighbourRegressor(3, weights="distance").fit(X, Y).predict(X), Y
+    )
 
 
 def _coupled_sparse_data(rng, n, n_atoms=8, dx=30, dy=6, nnz=2):
     Dx = np.abs(rng.normal(size=(n_atoms, dx)))
     Dy = rng.normal(size=(n_atoms, dy))
     C = np.zeros((n, n_atoms))
-    for j in range(nnz):
+    for _ in range(nnz):
         C[np.arange(n), rng.integers(n_atoms, size=n)] += rng.uniform(0.5, 1.5, n)
     return C @ Dx, C @ Dy
 
@@ -164,7 +169,9 @@ def test_sr_recovers_poses_from_shared_sparse_codes():
     X, Y = _coupled_sparse_data(rng, 260)
     X, Xt, Y, Yt = X[:200], X[200:], Y[:200], Y[200:]
     base = _mean_baseline_error(Y, Yt)
-    linear = SR(alpha=1e-6, positive=False, normalize="none", normalize_coef=False).fit(X, Y).predict(Xt)
+    linear = (
+        SR(alpha=1e-6, positive=False, normalize="none", normalize_coef=False).fit(X, Y).predict(Xt)
+    )
     assert np.sqrt(np.mean((linear - Yt) ** 2)) < 0.05 * base
     default = SR(alpha=1e-4).fit(X, Y).predict(Xt)
     assert np.sqrt(np.mean((default - Yt) ** 2)) < 0.5 * base
@@ -233,7 +240,10 @@ def test_row_mismatch_and_nan_are_rejected(make):
 @pytest.mark.parametrize(
     "est, match",
     [
-        (NearestNeighbourRegressor(n_neighbors=0), r"n_neighbors must be an integer in \[1, inf\]; got 0"),
+        (
+            NearestNeighbourRegressor(n_neighbors=0),
+            r"n_neighbors must be an integer in \[1, inf\]; got 0",
+        ),
         (NearestNeighbourRegressor(n_neighbors=13), r"n_neighbors=13 exceeds .* n_samples = 12"),
         (NearestNeighbourRegressor(weights="gauss"), r"weights must be one of .*; got 'gauss'"),
         (RidgeRegressor(alpha=-1.0), r"alpha must be .* \[0, inf\]; got -1.0"),

@@ -12,7 +12,9 @@ from bsrbench.models import _bsr_kernels as kern
 from bsrbench.models import diagnostics
 from bsrbench.models.bsr import BayesianSR
 
-SMALL = dict(n_atoms=6, n_neighbors=3, n_iter=30, n_burn_in=15, thin=3, n_predict_sweeps=3, random_state=0)
+SMALL = dict(
+    n_atoms=6, n_neighbors=3, n_iter=30, n_burn_in=15, thin=3, n_predict_sweeps=3, random_state=0
+)
 
 
 # K = 20 atoms: with 6 the 40-sweep fit of sklearn's regression check stays below its R^2 > 0.5 bar
@@ -78,8 +80,15 @@ def _oracle_predict(Xtr, Xte, truth, j):
 @pytest.mark.parametrize("atom_update", ["block", "single"])
 def test_prediction_on_model_data_approaches_true_dictionaries(atom_update):
     Xtr, Ytr, Xte, Yte, truth = _simulate(0)
-    model = BayesianSR(n_atoms=8, n_iter=400, n_burn_in=200, thin=4, standardize=False, atom_update=atom_update,
-                       random_state=1).fit(Xtr, Ytr)
+    model = BayesianSR(
+        n_atoms=8,
+        n_iter=400,
+        n_burn_in=200,
+        thin=4,
+        standardize=False,
+        atom_update=atom_update,
+        random_state=1,
+    ).fit(Xtr, Ytr)
     y, sd = model.predict(Xte, return_std=True)
     rmse = np.sqrt(np.mean((y - Yte) ** 2))
     rmse_oracle = np.sqrt(np.mean((_oracle_predict(Xtr, Xte, truth, model.n_neighbors) - Yte) ** 2))
@@ -136,15 +145,21 @@ def test_prediction_batch_invariant_and_weighting():
 def test_traces_samples_and_logging(caplog):
     X, Y = _toy()
     with caplog.at_level(logging.INFO, logger="bsrbench.models.bsr"):
-        m = BayesianSR(n_atoms=5, n_iter=200, n_burn_in=100, thin=10, verbose=True, random_state=0).fit(X, Y)
+        m = BayesianSR(
+            n_atoms=5, n_iter=200, n_burn_in=100, thin=10, verbose=True, random_state=0
+        ).fit(X, Y)
     msgs = [r.getMessage() for r in caplog.records if r.name == "bsrbench.models.bsr"]
-    assert any(s.startswith("sweep 100/200") for s in msgs) and any(s.startswith("sweep 200/200") for s in msgs)
+    assert any(s.startswith("sweep 100/200") for s in msgs) and any(
+        s.startswith("sweep 200/200") for s in msgs
+    )
     for name in diagnostics.SCALAR_TRACES:
         assert m.trace_[name].shape == (200,) and np.all(np.isfinite(m.trace_[name]))
     assert m.samples_["W"].shape == (10, 40, 5) and m.samples_["Dx"].shape == (10, 5, 5)
     assert m.samples_["Dy"].shape == (10, 5, 3)
     np.testing.assert_array_equal(m.samples_["g_xy"], m.trace_["g_xy"][109::10])
-    assert "g_nx" not in m.trace_ and "g_ny" not in m.trace_  # one shared noise precision, traced as g_xy
+    assert (
+        "g_nx" not in m.trace_ and "g_ny" not in m.trace_
+    )  # one shared noise precision, traced as g_xy
     np.testing.assert_array_equal(m.samples_["g_nx"], m.samples_["g_xy"])
     np.testing.assert_array_equal(m.samples_["g_ny"], m.samples_["g_xy"])
 
@@ -154,11 +169,15 @@ def test_acceptance_trace_counts_moved_logit_vectors(w_update):
     """The traced acceptance is the fraction of logit vectors w_k that changed in the sweep: checked against the
     retained samples (thin=1) of every sweep after burn-in."""
     X, Y = _toy()
-    m = BayesianSR(n_atoms=6, n_iter=40, n_burn_in=20, thin=1, w_update=w_update, random_state=0).fit(X, Y)
+    m = BayesianSR(
+        n_atoms=6, n_iter=40, n_burn_in=20, thin=1, w_update=w_update, random_state=0
+    ).fit(X, Y)
     W = m.samples_["W"]  # sweeps 20 .. 39, in order
     moved = np.any(W[1:] != W[:-1], axis=1).mean(axis=1)
     np.testing.assert_array_equal(moved, m.trace_["acceptance"][21:])
-    if w_update == "mh":  # the global MH proposal is rejected often at N = 40; ESS moves every vector
+    if (
+        w_update == "mh"
+    ):  # the global MH proposal is rejected often at N = 40; ESS moves every vector
         assert moved.mean() < 0.9
     else:
         assert moved.mean() == 1.0
@@ -166,7 +185,9 @@ def test_acceptance_trace_counts_moved_logit_vectors(w_update):
 
 def test_chain_summary_and_plot(tmp_path):
     X, Y = _toy()
-    fits = [BayesianSR(n_atoms=5, n_iter=120, n_burn_in=60, random_state=s).fit(X, Y) for s in range(3)]
+    fits = [
+        BayesianSR(n_atoms=5, n_iter=120, n_burn_in=60, random_state=s).fit(X, Y) for s in range(3)
+    ]
     tab = diagnostics.chain_summary(fits)
     assert list(tab.index[:3]) == ["log_likelihood", "g_xy", "g_s"]
     assert (tab.loc["g_xy", "n_chains"], tab.loc["g_xy", "n_draws"]) == (3, 60)
@@ -199,15 +220,20 @@ def test_separate_noise_precisions():
     rng = np.random.default_rng(3)
     X = rng.standard_normal((60, 6))
     Y = X[:, :2] @ rng.standard_normal((2, 3)) + 0.01 * rng.standard_normal((60, 3))
-    X = X + 1.0 * rng.standard_normal(X.shape)  # noisy inputs, nearly exact outputs given the latent
-    m = BayesianSR(n_atoms=4, n_iter=150, n_burn_in=100, thin=5, noise="separate", random_state=0).fit(X, Y)
+    X = X + 1.0 * rng.standard_normal(
+        X.shape
+    )  # noisy inputs, nearly exact outputs given the latent
+    m = BayesianSR(
+        n_atoms=4, n_iter=150, n_burn_in=100, thin=5, noise="separate", random_state=0
+    ).fit(X, Y)
     tr = m.trace_
     np.testing.assert_allclose(tr["g_xy"], 9 / (6 / tr["g_nx"] + 3 / tr["g_ny"]), rtol=1e-12)
     assert np.median(tr["g_ny"][100:]) > 3 * np.median(tr["g_nx"][100:])
     _, sd = m.predict(X[:5], return_std=True)
     draws, _ = m.predict_draws(X[:5])
-    np.testing.assert_allclose(sd**2, draws.var(axis=1) + np.mean(1 / m.samples_["g_ny"]) * m.y_scale_**2,
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        sd**2, draws.var(axis=1) + np.mean(1 / m.samples_["g_ny"]) * m.y_scale_**2, rtol=1e-10
+    )
 
 
 def test_logit_prior_mean_and_noise_prior_reach_the_sampler():
@@ -215,10 +241,13 @@ def test_logit_prior_mean_and_noise_prior_reach_the_sampler():
     proper Gamma prior on g_xy alone holds g_xy near its prior mean."""
     X, Y = _toy()
     base = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, random_state=0).fit(X, Y)
-    neg = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, w_prior_mean=-4.0, random_state=0).fit(X, Y)
+    neg = BayesianSR(
+        n_atoms=6, n_iter=60, n_burn_in=30, thin=3, w_prior_mean=-4.0, random_state=0
+    ).fit(X, Y)
     assert neg.samples_["W"].mean() < -2.0 < base.samples_["W"].mean()
-    tight = BayesianSR(n_atoms=6, n_iter=60, n_burn_in=30, thin=3, a_xy=1e5, b_xy=1e5 / 0.5,
-                       random_state=0).fit(X, Y)
+    tight = BayesianSR(
+        n_atoms=6, n_iter=60, n_burn_in=30, thin=3, a_xy=1e5, b_xy=1e5 / 0.5, random_state=0
+    ).fit(X, Y)
     np.testing.assert_allclose(tight.trace_["g_xy"][30:], 0.5, rtol=0.02)
     assert not np.allclose(base.trace_["g_xy"][30:], 0.5, rtol=0.2)
 
@@ -234,7 +263,9 @@ def test_paper_text_prediction(weighting):
     draws, wts = m.predict_draws(X[30:])
     assert np.all(np.isfinite(draws)) and not np.allclose(draws, cond)
     np.testing.assert_allclose(m.predict(X[30:]), np.einsum("tl,tlm->tm", wts, draws), rtol=1e-12)
-    np.testing.assert_array_equal(m.predict(X[33:35]), m.predict(X[30:])[3:5])  # batch-invariant streams
+    np.testing.assert_array_equal(
+        m.predict(X[33:35]), m.predict(X[30:])[3:5]
+    )  # batch-invariant streams
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -254,7 +285,9 @@ def test_non_finite_input(bad):
         BayesianSR(**SMALL).fit(X, Y)
     X, Y = _toy()
     Y[2, 0] = bad
-    with pytest.raises(InputError, match=r"BayesianSR\.fit: Input Y contains (NaN|infinity) at row 2, column 0"):
+    with pytest.raises(
+        InputError, match=r"BayesianSR\.fit: Input Y contains (NaN|infinity) at row 2, column 0"
+    ):
         BayesianSR(**SMALL).fit(X, Y)
 
 
@@ -270,18 +303,36 @@ def test_fewer_rows_than_neighbours():
 @pytest.mark.parametrize(
     "params, match",
     [
-        ({"n_burn_in": 30, "n_iter": 30}, "n_burn_in must be smaller than n_iter=30.*got n_burn_in=30"),
+        (
+            {"n_burn_in": 30, "n_iter": 30},
+            "n_burn_in must be smaller than n_iter=30.*got n_burn_in=30",
+        ),
         ({"n_atoms": 0}, "n_atoms must be >= 1; got 0"),
         ({"n_atoms": 2.5}, "n_atoms must be an integer; got 2.5"),
         ({"thin": 0}, "thin must be >= 1; got 0"),
-        ({"n_iter": 30, "n_burn_in": 15, "thin": 16},  # before: silently kept the last sweep only
-         r"thin=16 retains no sweep of the n_iter - n_burn_in = 15 after burn-in; expected thin <= 15"),
+        (
+            {
+                "n_iter": 30,
+                "n_burn_in": 15,
+                "thin": 16,
+            },  # before: silently kept the last sweep only
+            r"thin=16 retains no sweep of the n_iter - n_burn_in = 15 after burn-in; expected thin <= 15",
+        ),
         ({"w_update": "gibbs"}, "w_update must be one of .*got 'gibbs'"),
         ({"atom_update": "joint"}, "atom_update must be one of .*got 'joint'"),
-        ({"prediction_weighting": "max"}, "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'"),
+        (
+            {"prediction_weighting": "max"},
+            "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'",
+        ),
         ({"a0": -1.0}, "a0 must be a positive finite number; got -1.0"),
-        ({"w_update": "paper-as-printed"}, "w_update must be one of .*paper-literal.*got 'paper-as-printed'"),
-        ({"prediction": "prior"}, r"prediction must be one of \['conditional', 'paper-text'\]; got 'prior'"),
+        (
+            {"w_update": "paper-as-printed"},
+            "w_update must be one of .*paper-literal.*got 'paper-as-printed'",
+        ),
+        (
+            {"prediction": "prior"},
+            r"prediction must be one of \['conditional', 'paper-text'\]; got 'prior'",
+        ),
         ({"a_xy": 0.0}, "a_xy must be a positive finite number; got 0.0"),
         ({"b_xy": "1"}, "b_xy must be a positive number; got '1'"),
         ({"w_prior_mean": np.inf}, "w_prior_mean must be a finite number; got inf"),
@@ -299,7 +350,9 @@ def test_bad_parameters(params, match):
 def test_non_finite_state_names_the_sweep(monkeypatch):
     X, Y = _toy()
     X[0, 0] = 1e300  # finite input whose square overflows without standardization
-    with pytest.raises(SamplerError, match=r"non-finite or degenerate sampler state at sweep 0 \(initial state\)"):
+    with pytest.raises(
+        SamplerError, match=r"non-finite or degenerate sampler state at sweep 0 \(initial state\)"
+    ):
         BayesianSR(**{**SMALL, "standardize": False}).fit(X, Y)
     # force a huge atom just before sweep 5: the real sweep then produces a non-finite state
     real_sweep, calls = kern.gibbs_sweep, []

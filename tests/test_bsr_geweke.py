@@ -15,21 +15,48 @@ from bsrbench.models import _bsr_kernels as kern
 N, K, MX, MY = 4, 3, 2, 2
 A0 = B0 = 6.0  # shape > 4: the fourth moments behind the second-moment z-scores are finite
 
-STAT_NAMES = ("g_s", "g_nx", "g_ny", "g_x", "g_y", "mean_b", "mean_w", "mean_w2", "mean_zw", "mean_dx2",
-              "mean_dy2", "mean_s2", "mean_alpha2", "mean_vx2", "mean_vy2")
+STAT_NAMES = (
+    "g_s",
+    "g_nx",
+    "g_ny",
+    "g_x",
+    "g_y",
+    "mean_b",
+    "mean_w",
+    "mean_w2",
+    "mean_zw",
+    "mean_dx2",
+    "mean_dy2",
+    "mean_s2",
+    "mean_alpha2",
+    "mean_vx2",
+    "mean_vy2",
+)
 
 
 def _stats(prec, D, B, S, W, V):
     """Test statistics for a batch of states (leading axis = draw); prec columns as in the kernels' state."""
     z = 2.0 * B - 1.0
     ax = (1, 2)
-    return np.column_stack([
-        prec[:, 0], prec[:, 4], prec[:, 5], prec[:, 2], prec[:, 3],
-        B.mean(axis=ax), W.mean(axis=ax), np.mean(W**2, axis=ax), np.mean(z * W, axis=ax),
-        np.mean(D[:, :, :MX] ** 2, axis=ax), np.mean(D[:, :, MX:] ** 2, axis=ax),
-        np.mean(S**2, axis=ax), np.mean((B * S) ** 2, axis=ax),
-        np.mean(V[:, :, :MX] ** 2, axis=ax), np.mean(V[:, :, MX:] ** 2, axis=ax),
-    ])
+    return np.column_stack(
+        [
+            prec[:, 0],
+            prec[:, 4],
+            prec[:, 5],
+            prec[:, 2],
+            prec[:, 3],
+            B.mean(axis=ax),
+            W.mean(axis=ax),
+            np.mean(W**2, axis=ax),
+            np.mean(z * W, axis=ax),
+            np.mean(D[:, :, :MX] ** 2, axis=ax),
+            np.mean(D[:, :, MX:] ** 2, axis=ax),
+            np.mean(S**2, axis=ax),
+            np.mean((B * S) ** 2, axis=ax),
+            np.mean(V[:, :, :MX] ** 2, axis=ax),
+            np.mean(V[:, :, MX:] ** 2, axis=ax),
+        ]
+    )
 
 
 def prior_draws(n, Lw, rng, hyper):
@@ -39,14 +66,27 @@ def prior_draws(n, Lw, rng, hyper):
     prec[:, [0, 2, 3]] = rng.gamma(A0, 1.0 / B0, size=(n, 3))
     prec[:, 4] = rng.gamma(a_xy, 1.0 / b_xy, size=n)
     prec[:, 5] = rng.gamma(a_xy, 1.0 / b_xy, size=n) if hyper.noise == "separate" else prec[:, 4]
-    D = np.concatenate([rng.standard_normal((n, K, MX)) / np.sqrt(prec[:, 2, None, None]),
-                        rng.standard_normal((n, K, MY)) / np.sqrt(prec[:, 3, None, None])], axis=2)
+    D = np.concatenate(
+        [
+            rng.standard_normal((n, K, MX)) / np.sqrt(prec[:, 2, None, None]),
+            rng.standard_normal((n, K, MY)) / np.sqrt(prec[:, 3, None, None]),
+        ],
+        axis=2,
+    )
     W = np.einsum("ij,njk->nik", Lw, rng.standard_normal((n, N, K))) + hyper.w_mean
     B = (rng.random((n, N, K)) < 1.0 / (1.0 + np.exp(-W))).astype(float)
     S = rng.standard_normal((n, N, K)) / np.sqrt(prec[:, 0, None, None])
-    noise_sd = np.concatenate([np.repeat(1 / np.sqrt(prec[:, 4, None]), MX, 1),
-                               np.repeat(1 / np.sqrt(prec[:, 5, None]), MY, 1)], axis=1)
-    V = np.einsum("nik,nkm->nim", B * S, D) + rng.standard_normal((n, N, MX + MY)) * noise_sd[:, None, :]
+    noise_sd = np.concatenate(
+        [
+            np.repeat(1 / np.sqrt(prec[:, 4, None]), MX, 1),
+            np.repeat(1 / np.sqrt(prec[:, 5, None]), MY, 1),
+        ],
+        axis=1,
+    )
+    V = (
+        np.einsum("nik,nkm->nim", B * S, D)
+        + rng.standard_normal((n, N, MX + MY)) * noise_sd[:, None, :]
+    )
     return prec, D, B, S, W, V
 
 
@@ -74,11 +114,22 @@ def geweke_z(w_update, n_iter, seed=0, atom_update="block", **model):
 
     state, V = kern.draw_from_prior(N, K, MX, MY, Sigma, Lw, A0, B0, rng, hyper)
     data = kern.BSRData(V=V, Mx=MX, Sigma=Sigma, Lw=Lw)
-    rec = {name: np.empty((n_iter,) + arr.shape) for name, arr in
-           (("prec", state.prec), ("D", state.D), ("B", state.B), ("S", state.S), ("W", state.W), ("V", V))}
+    rec = {
+        name: np.empty((n_iter,) + arr.shape)
+        for name, arr in (
+            ("prec", state.prec),
+            ("D", state.D),
+            ("B", state.B),
+            ("S", state.S),
+            ("W", state.W),
+            ("V", V),
+        )
+    }
     for t in range(n_iter):
         kern.gibbs_sweep(state, data, hyper, rng, w_update, atom_update)
-        kern.redraw_data(V, state.R, state.D, state.B, state.S, state.prec[4], rng, state.prec[5], MX)
+        kern.redraw_data(
+            V, state.R, state.D, state.B, state.S, state.prec[4], rng, state.prec[5], MX
+        )
         rec["prec"][t], rec["D"][t], rec["B"][t] = state.prec, state.D, state.B
         rec["S"][t], rec["W"][t], rec["V"][t] = state.S, state.W, V
     sc = _stats(rec["prec"], rec["D"], rec["B"], rec["S"], rec["W"], rec["V"])
@@ -90,9 +141,15 @@ def geweke_z(w_update, n_iter, seed=0, atom_update="block", **model):
     names = list(STAT_NAMES) + [f"{s}^2" for s in STAT_NAMES]
     out = dict(zip(names, z))
     if hyper.noise == "shared":
-        out = {("g_xy" + k[4:] if k.startswith("g_nx") else k): v for k, v in out.items() if not k.startswith("g_ny")}
+        out = {
+            ("g_xy" + k[4:] if k.startswith("g_nx") else k): v
+            for k, v in out.items()
+            if not k.startswith("g_ny")
+        }
     # relative error of E[w^2] (successive vs marginal), reported by the failing ablations
-    out["rel_w2"] = m_sc[:, names.index("mean_w2")].mean() / m_mc[:, names.index("mean_w2")].mean() - 1.0
+    out["rel_w2"] = (
+        m_sc[:, names.index("mean_w2")].mean() / m_mc[:, names.index("mean_w2")].mean() - 1.0
+    )
     return out
 
 

@@ -51,8 +51,12 @@ def test_codes_match_naive(seed):
     s1, data, _ = _problem(seed)
     s2 = _copy(s1)
     p = s1.prec
-    kern.update_codes(s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(seed + 10))
-    naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(seed + 10))
+    kern.update_codes(
+        s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(seed + 10)
+    )
+    naive.update_codes(
+        s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(seed + 10)
+    )
     _assert_states_close(s1, s2)
     # the in-place residual equals a fresh one
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
@@ -67,7 +71,9 @@ def test_codes_blocked_over_atoms_match_naive(K):
     p = s1.prec
     assert 0.05 < s1.B.mean() < 0.95  # both branches of the update are exercised
     kern.update_codes(s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(21))
-    naive.update_codes(s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(21))
+    naive.update_codes(
+        s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(21)
+    )
     _assert_states_close(s1, s2)
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
@@ -77,9 +83,32 @@ def test_atoms_match_naive(My):
     s1, data, _ = _problem(3, My=My)
     s2 = _copy(s1)
     p = s1.prec
-    kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(5))
-    naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
-                       np.random.default_rng(5))
+    kern.update_atoms(
+        data.V,
+        s1.R,
+        s1.D,
+        s1.norms,
+        s1.B,
+        s1.S,
+        p[1],
+        p[2],
+        p[3],
+        data.Mx,
+        np.random.default_rng(5),
+    )
+    naive.update_atoms(
+        data.V,
+        s2.R,
+        s2.D,
+        s2.norms,
+        s2.B,
+        s2.S,
+        p[1],
+        p[2],
+        p[3],
+        data.Mx,
+        np.random.default_rng(5),
+    )
     _assert_states_close(s1, s2)
 
 
@@ -88,9 +117,12 @@ def test_single_site_atoms_match_naive(My):
     s1, data, _ = _problem(4, My=My)
     s2 = _copy(s1)
     p = s1.prec
-    kern.update_atoms_single(s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6))
-    naive.update_atoms_single(s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
-                              np.random.default_rng(6))
+    kern.update_atoms_single(
+        s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6)
+    )
+    naive.update_atoms_single(
+        s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6)
+    )
     _assert_states_close(s1, s2)
     assert not np.allclose(s1.D, _problem(4, My=My)[0].D)
     # the in-place residual equals a fresh one
@@ -102,9 +134,32 @@ def test_atoms_blocked_solves_large_k():
     s1, data, _ = _problem(4, N=30, K=101, Mx=6, My=5)
     s2 = _copy(s1)
     p = s1.prec
-    kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[1], p[2], p[3], data.Mx, np.random.default_rng(6))
-    naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[1], p[2], p[3], data.Mx,
-                       np.random.default_rng(6))
+    kern.update_atoms(
+        data.V,
+        s1.R,
+        s1.D,
+        s1.norms,
+        s1.B,
+        s1.S,
+        p[1],
+        p[2],
+        p[3],
+        data.Mx,
+        np.random.default_rng(6),
+    )
+    naive.update_atoms(
+        data.V,
+        s2.R,
+        s2.D,
+        s2.norms,
+        s2.B,
+        s2.S,
+        p[1],
+        p[2],
+        p[3],
+        data.Mx,
+        np.random.default_rng(6),
+    )
     _assert_states_close(s1, s2)
 
 
@@ -115,8 +170,12 @@ def test_precisions_match_naive(variant, My):
     p1, p2 = s.prec.copy(), s.prec.copy()
     a_xy, b_xy = h.noise_ab
     sep = h.noise == "separate"
-    kern.update_precisions(s.R, s.D, s.S, p1, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep)
-    naive.update_precisions(s.R, s.D, s.S, p2, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep)
+    kern.update_precisions(
+        s.R, s.D, s.S, p1, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep
+    )
+    naive.update_precisions(
+        s.R, s.D, s.S, p2, data.Mx, h.a0, h.b0, np.random.default_rng(1), a_xy, b_xy, sep
+    )
     np.testing.assert_allclose(p1, p2, rtol=1e-12)
     assert not np.allclose(p1[:2], s.prec[:2])
     if sep and My:
@@ -130,7 +189,9 @@ def test_precisions_match_naive(variant, My):
 def test_precisions_reject_a_short_prec_array():
     s, data, h = _problem(5)
     with pytest.raises(ValueError, match="prec must have 6 entries"):
-        kern.update_precisions(s.R, s.D, s.S, s.prec[:4].copy(), data.Mx, h.a0, h.b0, np.random.default_rng(1))
+        kern.update_precisions(
+            s.R, s.D, s.S, s.prec[:4].copy(), data.Mx, h.a0, h.b0, np.random.default_rng(1)
+        )
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -139,10 +200,12 @@ def test_codes_separate_noise_match_naive(seed):
     s1, data, _ = _problem(seed, **MODEL_VARIANTS["separate"])
     s2 = _copy(s1)
     p = s1.prec
-    kern.update_codes_separate(s1.R, s1.D, s1.B, s1.S, s1.W, p[0], p[4], p[5], data.Mx,
-                               np.random.default_rng(seed + 10))
-    naive.update_codes_separate(s2.R, s2.D, s2.B, s2.S, s2.W, p[0], p[4], p[5], data.Mx,
-                                np.random.default_rng(seed + 10))
+    kern.update_codes_separate(
+        s1.R, s1.D, s1.B, s1.S, s1.W, p[0], p[4], p[5], data.Mx, np.random.default_rng(seed + 10)
+    )
+    naive.update_codes_separate(
+        s2.R, s2.D, s2.B, s2.S, s2.W, p[0], p[4], p[5], data.Mx, np.random.default_rng(seed + 10)
+    )
     _assert_states_close(s1, s2)
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
@@ -153,15 +216,61 @@ def test_atoms_separate_noise_match_naive(single):
     s2 = _copy(s1)
     p = s1.prec
     if single:
-        kern.update_atoms_single(s1.R, s1.D, s1.norms, s1.B, s1.S, p[4], p[2], p[3], data.Mx,
-                                 np.random.default_rng(5), p[5])
-        naive.update_atoms_single(s2.R, s2.D, s2.norms, s2.B, s2.S, p[4], p[2], p[3], data.Mx,
-                                  np.random.default_rng(5), p[5])
+        kern.update_atoms_single(
+            s1.R,
+            s1.D,
+            s1.norms,
+            s1.B,
+            s1.S,
+            p[4],
+            p[2],
+            p[3],
+            data.Mx,
+            np.random.default_rng(5),
+            p[5],
+        )
+        naive.update_atoms_single(
+            s2.R,
+            s2.D,
+            s2.norms,
+            s2.B,
+            s2.S,
+            p[4],
+            p[2],
+            p[3],
+            data.Mx,
+            np.random.default_rng(5),
+            p[5],
+        )
     else:
-        kern.update_atoms(data.V, s1.R, s1.D, s1.norms, s1.B, s1.S, p[4], p[2], p[3], data.Mx,
-                          np.random.default_rng(5), p[5])
-        naive.update_atoms(data.V, s2.R, s2.D, s2.norms, s2.B, s2.S, p[4], p[2], p[3], data.Mx,
-                           np.random.default_rng(5), p[5])
+        kern.update_atoms(
+            data.V,
+            s1.R,
+            s1.D,
+            s1.norms,
+            s1.B,
+            s1.S,
+            p[4],
+            p[2],
+            p[3],
+            data.Mx,
+            np.random.default_rng(5),
+            p[5],
+        )
+        naive.update_atoms(
+            data.V,
+            s2.R,
+            s2.D,
+            s2.norms,
+            s2.B,
+            s2.S,
+            p[4],
+            p[2],
+            p[3],
+            data.Mx,
+            np.random.default_rng(5),
+            p[5],
+        )
     _assert_states_close(s1, s2)
 
 
@@ -171,7 +280,9 @@ def test_w_mh_matches_naive(ratio, w_mean):
     s, data, _ = _problem(6, N=6, K=40)
     W1 = s.W + w_mean
     W2 = W1.copy()
-    code = {"exact": kern.MH_EXACT, "printed": kern.MH_PRINTED_RATIO, "literal": kern.MH_LITERAL}[ratio]
+    code = {"exact": kern.MH_EXACT, "printed": kern.MH_PRINTED_RATIO, "literal": kern.MH_LITERAL}[
+        ratio
+    ]
     a1 = kern.update_w_mh(W1, s.B, data.Sigma, data.Lw, np.random.default_rng(2), code, w_mean)
     a2 = naive.update_w_mh(W2, s.B, data.Sigma, data.Lw, np.random.default_rng(2), ratio, w_mean)
     assert a1 == a2
@@ -194,8 +305,14 @@ def test_w_ess_matches_naive(w_mean):
 
 @pytest.mark.parametrize(
     "w_update, atom_update",
-    [("mh", "block"), ("ess", "block"), ("paper-printed-ratio", "block"), ("paper-literal", "block"),
-     ("ess", "single"), ("mh", "single")],
+    [
+        ("mh", "block"),
+        ("ess", "block"),
+        ("paper-printed-ratio", "block"),
+        ("paper-literal", "block"),
+        ("ess", "single"),
+        ("mh", "single"),
+    ],
 )
 def test_sweeps_match_naive(w_update, atom_update):
     _sweeps_match(_problem(8), w_update, atom_update)
@@ -222,10 +339,19 @@ def _sweeps_match(problem, w_update, atom_update):
     _assert_states_close(s1, s2)
 
 
-@pytest.mark.parametrize("seed, n_atoms, scale, n_sweeps, stream", [
-    (11, 6, 1.0, 4, 123),  # one partial block of atoms
-    (12, "block+5", 0.5, 3, 5),  # more atoms than one block of the prediction kernel (a full and a partial block)
-])
+@pytest.mark.parametrize(
+    "seed, n_atoms, scale, n_sweeps, stream",
+    [
+        (11, 6, 1.0, 4, 123),  # one partial block of atoms
+        (
+            12,
+            "block+5",
+            0.5,
+            3,
+            5,
+        ),  # more atoms than one block of the prediction kernel (a full and a partial block)
+    ],
+)
 def test_predict_kernel_matches_naive(seed, n_atoms, scale, n_sweeps, stream):
     rng = np.random.default_rng(seed)
     K = kern._PRED_BLOCK + 5 if n_atoms == "block+5" else n_atoms
@@ -244,9 +370,10 @@ def test_predict_kernel_matches_naive(seed, n_atoms, scale, n_sweeps, stream):
     # a point's stream does not depend on the batch: the same draws alone as in a batch, up to the rounding of
     # the batch's matrix products
     sub_y = np.empty((1, L, My))
-    kern.predict_kernel(Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, n_sweeps, seeds[2:3], sub_y, np.empty((1, L)))
+    kern.predict_kernel(
+        Xt[2:3], nbr[2:3], Dx, Dy, Ws, gs, gxy, n_sweeps, seeds[2:3], sub_y, np.empty((1, L))
+    )
     np.testing.assert_allclose(sub_y[0], out_y[2], rtol=1e-12, atol=1e-14)
-
 
 
 def test_predict_prior_codes_matches_naive():
@@ -279,8 +406,18 @@ def test_predict_prior_codes_weights_against_exact_gaussian():
     Ws = np.full((n, 1, K), 40.0)
     x = rng.standard_normal((1, Mx))
     out_y, out_ll = np.empty((1, n, My)), np.empty((1, n))
-    kern.predict_kernel_prior_codes(x, np.zeros((1, 1), dtype=np.int64), Dx, Dy, Ws, np.full(n, g_s),
-                                    np.full(n, g_xy), np.array([5], dtype=np.uint64), out_y, out_ll)
+    kern.predict_kernel_prior_codes(
+        x,
+        np.zeros((1, 1), dtype=np.int64),
+        Dx,
+        Dy,
+        Ws,
+        np.full(n, g_s),
+        np.full(n, g_xy),
+        np.array([5], dtype=np.uint64),
+        out_y,
+        out_ll,
+    )
     P = g_s * np.eye(K) + g_xy * Dx1 @ Dx1.T
     Pi = np.linalg.inv(P)
     mean = Dy1.T @ Pi @ (g_xy * Dx1 @ x[0])
@@ -295,8 +432,13 @@ def test_vectorizable_log_sigmoid_sum_is_exact():
     """The libm-free exp(-a), the sigmoid pair of the MH bound and the sum of log sigmoids of the slice sampler,
     against NumPy/math in float64 (within a few ulps), over the whole range including |x| past the clamp and
     N above one logged product of _LOG_CHUNK terms."""
-    a = np.concatenate([np.linspace(0.0, 45.0, 4501), np.linspace(45.0, 720.0, 2701), [1e-300, 36.9, 37.1]])
-    exp_neg, sig_pair = njit(lambda v: kern._exp_neg(v)), njit(lambda v: kern._sig_pair(v))  # compiled code
+    a = np.concatenate(
+        [np.linspace(0.0, 45.0, 4501), np.linspace(45.0, 720.0, 2701), [1e-300, 36.9, 37.1]]
+    )
+    exp_neg, sig_pair = (
+        njit(lambda v: kern._exp_neg(v)),
+        njit(lambda v: kern._sig_pair(v)),
+    )  # compiled code
     got = np.array([exp_neg(x) for x in a])
     np.testing.assert_allclose(got, np.exp(-np.minimum(a, kern._EXP_CLAMP)), rtol=5e-16, atol=0)
     x = np.concatenate([-a, a])
@@ -324,7 +466,9 @@ def test_ziggurat_normals_are_standard_normal():
     """Kernel normals: equal to the reference draw for draw; KS; mean/variance; the tail beyond the base
     layer's edge r and the wedges (both slow paths) occur at their exact rates."""
     s = naive.SplitMix(77)
-    np.testing.assert_allclose(kern.stream_normals(77, 3000), [s.normal() for _ in range(3000)], rtol=1e-12)
+    np.testing.assert_allclose(
+        kern.stream_normals(77, 3000), [s.normal() for _ in range(3000)], rtol=1e-12
+    )
     x_tab, f_tab = kern.ziggurat_tables()
     assert x_tab[1] == kern.ZIG_R and x_tab[-1] == 0.0
     # equal layer areas: x_i (f(x_{i+1}) - f(x_i)) = v for 1 <= i < 255, and the top layer closes at f = 1
@@ -334,10 +478,19 @@ def test_ziggurat_normals_are_standard_normal():
     assert stats.kstest(z[:200_000], "norm").pvalue > 1e-3
     se = 1 / np.sqrt(z.size)
     assert abs(z.mean()) < 4 * se and abs(z.var() - 1) < 4 * np.sqrt(2) * se
-    for edge in (1.0, 2.0, kern.ZIG_R, 4.0):  # two-sided tail frequencies, |z| < 4 binomial standard errors
+    for edge in (
+        1.0,
+        2.0,
+        kern.ZIG_R,
+        4.0,
+    ):  # two-sided tail frequencies, |z| < 4 binomial standard errors
         p = 2 * stats.norm.sf(edge)
         count = np.count_nonzero(np.abs(z) > edge)
-        assert abs(count - p * z.size) < 4 * np.sqrt(p * (1 - p) * z.size) + 1, (edge, count, p * z.size)
+        assert abs(count - p * z.size) < 4 * np.sqrt(p * (1 - p) * z.size) + 1, (
+            edge,
+            count,
+            p * z.size,
+        )
 
 
 def test_sampler_draws_equal_the_generators_bit_for_bit():
@@ -380,8 +533,12 @@ def test_keep_freed_memory_stops_page_faults_of_the_temporaries():
     import subprocess
 
     def faults(mode):
-        out = subprocess.run([sys.executable, "-c", _FAULTS_PER_CODE_UPDATE, mode], capture_output=True, text=True,
-                             check=True)
+        out = subprocess.run(
+            [sys.executable, "-c", _FAULTS_PER_CODE_UPDATE, mode],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         return float(out.stdout.split()[-1])
 
     default, kept = faults("default"), faults("keep")
@@ -418,12 +575,18 @@ def test_code_pair_against_grid():
 
     def log_joint(b, s):
         resid = v[None, :] - b * s[:, None] * d[None, :]
-        return (np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 + 0.5 * np.log(g_s)
-                - 0.5 * g_xy * np.sum(resid**2, axis=1))
+        return (
+            np.log(expit((2 * b - 1) * w))
+            - 0.5 * g_s * s**2
+            + 0.5 * np.log(g_s)
+            - 0.5 * g_xy * np.sum(resid**2, axis=1)
+        )
 
     l1, l0 = log_joint(1, grid), log_joint(0, grid)
     m = max(l1.max(), l0.max())
-    p1 = np.trapezoid(np.exp(l1 - m), grid) / (np.trapezoid(np.exp(l1 - m), grid) + np.trapezoid(np.exp(l0 - m), grid))
+    p1 = np.trapezoid(np.exp(l1 - m), grid) / (
+        np.trapezoid(np.exp(l1 - m), grid) + np.trapezoid(np.exp(l0 - m), grid)
+    )
     on = B[:, 0] == 1
     assert 0.1 < p1 < 0.9
     assert stats.binomtest(int(on.sum()), n_rep, p1).pvalue > 1e-3
@@ -446,8 +609,15 @@ _PREC_FACTORS = {
 
 @pytest.mark.parametrize(
     "name, variant",
-    [("g_s", "paper"), ("g_x", "paper"), ("g_y", "paper"), ("g_xy", "paper"), ("g_xy", "noise-prior"),
-     ("g_nx", "separate"), ("g_ny", "separate")],
+    [
+        ("g_s", "paper"),
+        ("g_x", "paper"),
+        ("g_y", "paper"),
+        ("g_xy", "paper"),
+        ("g_xy", "noise-prior"),
+        ("g_nx", "separate"),
+        ("g_ny", "separate"),
+    ],
 )
 def test_precision_against_grid(name, variant):
     """Each precision's conditional ∝ Gamma(g; a, b) prod_j N(u_j; 0, 1/g) over the values u it scales (all N K
@@ -461,7 +631,9 @@ def test_precision_against_grid(name, variant):
     draws = np.empty(20000)
     prec = s.prec.copy()
     for t in range(draws.size):
-        kern.update_precisions(s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng, *h.noise_ab, h.noise == "separate")
+        kern.update_precisions(
+            s.R, s.D, s.S, prec, data.Mx, h.a0, h.b0, rng, *h.noise_ab, h.noise == "separate"
+        )
         draws[t] = prec[idx]
     u = values(s, data.Mx)
     uu, n = np.sum(u**2), u.size
@@ -481,14 +653,26 @@ def test_code_pair_separate_noise_against_grid():
     R = np.tile(v, (n_rep, 1))
     B = np.zeros((n_rep, 1), dtype=np.int8)
     S = np.zeros((n_rep, 1))
-    kern.update_codes_separate(R, d[None, :].copy(), B, S, np.full((n_rep, 1), w), g_s, g_nx, g_ny, Mx,
-                               np.random.default_rng(32))
+    kern.update_codes_separate(
+        R,
+        d[None, :].copy(),
+        B,
+        S,
+        np.full((n_rep, 1), w),
+        g_s,
+        g_nx,
+        g_ny,
+        Mx,
+        np.random.default_rng(32),
+    )
     grid = np.linspace(-6, 6, 20001)
     c = np.where(np.arange(Mx + My) < Mx, g_nx, g_ny)
 
     def log_joint(b, s):
         resid = v[None, :] - b * s[:, None] * d[None, :]
-        return np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 - 0.5 * np.sum(c * resid**2, axis=1)
+        return (
+            np.log(expit((2 * b - 1) * w)) - 0.5 * g_s * s**2 - 0.5 * np.sum(c * resid**2, axis=1)
+        )
 
     l1, l0 = log_joint(1, grid), log_joint(0, grid)
     m = max(l1.max(), l0.max())
@@ -536,11 +720,20 @@ def test_atom_rows_against_grid(atom_update, row):
     d1, d2 = np.meshgrid(g, g, indexing="ij")
     # sum_i (x_i - d1 a_i1 - d2 a_i2)^2 written out as a quadratic form in (d1, d2)
     x = V[:, 0]
-    sq = (x @ x - 2 * d1 * (A[:, 0] @ x) - 2 * d2 * (A[:, 1] @ x) + d1**2 * (A[:, 0] @ A[:, 0])
-          + 2 * d1 * d2 * (A[:, 0] @ A[:, 1]) + d2**2 * (A[:, 1] @ A[:, 1]))
+    sq = (
+        x @ x
+        - 2 * d1 * (A[:, 0] @ x)
+        - 2 * d2 * (A[:, 1] @ x)
+        + d1**2 * (A[:, 0] @ A[:, 0])
+        + 2 * d1 * d2 * (A[:, 0] @ A[:, 1])
+        + d2**2 * (A[:, 1] @ A[:, 1])
+    )
     logd = -0.5 * g_xy * sq - 0.5 * g_x * (d1**2 + d2**2)
     dens = np.exp(logd - logd.max())
-    edges = np.quantile(draws[:, 0], np.linspace(0, 1, 7)), np.quantile(draws[:, 1], np.linspace(0, 1, 7))
+    edges = (
+        np.quantile(draws[:, 0], np.linspace(0, 1, 7)),
+        np.quantile(draws[:, 1], np.linspace(0, 1, 7)),
+    )
     for e in edges:
         e[0], e[-1] = -lim, lim
     obs, _, _ = np.histogram2d(draws[:, 0], draws[:, 1], bins=edges)
@@ -578,8 +771,11 @@ def test_w_update_leaves_target_invariant(w_update, w_mean):
     w1, w2 = np.meshgrid(g, g, indexing="ij")
     Si = np.linalg.inv(Sigma)
     u1, u2 = w1 - w_mean, w2 - w_mean
-    logd = (-0.5 * (Si[0, 0] * u1**2 + 2 * Si[0, 1] * u1 * u2 + Si[1, 1] * u2**2)
-            + np.log(expit(z[0] * w1)) + np.log(expit(z[1] * w2)))
+    logd = (
+        -0.5 * (Si[0, 0] * u1**2 + 2 * Si[0, 1] * u1 * u2 + Si[1, 1] * u2**2)
+        + np.log(expit(z[0] * w1))
+        + np.log(expit(z[1] * w2))
+    )
     dens = np.exp(logd - logd.max())
     marg = np.log(dens.sum(axis=1))
     assert stats.kstest(W[0], _grid_cdf(g, marg)).pvalue > 1e-3

@@ -12,7 +12,10 @@ from bsrbench.cli_config import load_schema, retype_cli_config, retype_yaml_numb
 from bsrbench.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
-SCHEMAS = [ROOT / "workflow" / "schemas" / "config.schema.yaml", ROOT / "workflow" / "schemas" / "datasets.schema.yaml"]
+SCHEMAS = [
+    ROOT / "workflow" / "schemas" / "config.schema.yaml",
+    ROOT / "workflow" / "schemas" / "datasets.schema.yaml",
+]
 
 #: One command-line override per list key of the schemas (the README's syntax: key='YAML flow value').
 OVERRIDES = {
@@ -62,18 +65,26 @@ def test_list_override_reads_like_a_config_file(key):
     arg = OVERRIDES[key]
     name, _, text = arg.partition("=")
     parsed = parse_config([arg])  # Snakemake's own reading: scalars inside lists stay strings
-    config = {"keep": 1, name: {"other": "kept"}} if isinstance(yaml.safe_load(text), dict) else {"keep": 1}
+    config = (
+        {"keep": 1, name: {"other": "kept"}}
+        if isinstance(yaml.safe_load(text), dict)
+        else {"keep": 1}
+    )
     update_config(config, parsed)
     retype_cli_config(config, [arg], parsed)
     expected = {"keep": 1}
     if isinstance(yaml.safe_load(text), dict):
         expected[name] = {"other": "kept"}
-    update_config(expected, {name: yaml.safe_load(text)})  # what a --configfile with this value gives
+    update_config(
+        expected, {name: yaml.safe_load(text)}
+    )  # what a --configfile with this value gives
     assert config == expected
 
 
 def test_scalars_keep_snakemakes_reading_and_bad_yaml_names_the_key():
-    assert parse_config(["n_train=[100]"]) == {"n_train": ["100"]}  # Snakemake alone: the issue's failure
+    assert parse_config(["n_train=[100]"]) == {
+        "n_train": ["100"]
+    }  # Snakemake alone: the issue's failure
     parsed = parse_config(["n_seeds=4", "job_server=False", "study=1e3"])
     config = dict(parsed)
     retype_cli_config(config, ["n_seeds=4", "job_server=False", "study=1e3"], parsed)
@@ -103,20 +114,30 @@ def test_exponent_numbers_read_as_numbers_where_the_schema_allows_one():
         features: {render: {view_azimuth_deg: 1e1, image_size: [1.28e2, 128]}}
         """
     )
-    assert config["gap"] == "3e1" and config["methods"]["Ridge"]["params"]["alpha"] == "1e-3"  # YAML 1.1
+    assert (
+        config["gap"] == "3e1" and config["methods"]["Ridge"]["params"]["alpha"] == "1e-3"
+    )  # YAML 1.1
     changed = retype_yaml_numbers(config, load_schema(*SCHEMAS))
-    assert config["gap"] == 30 and isinstance(config["gap"], int)  # integer keys: whole numbers as int
-    assert config["n_seeds"] == 10 and isinstance(config["n_seeds"], int)  # `--config n_seeds=1e1` gives 10.0
+    assert config["gap"] == 30 and isinstance(
+        config["gap"], int
+    )  # integer keys: whole numbers as int
+    assert config["n_seeds"] == 10 and isinstance(
+        config["n_seeds"], int
+    )  # `--config n_seeds=1e1` gives 10.0
     assert config["min_test"] == "1.5e0"  # not whole: left for the schema to reject, naming the key
     assert config["n_train"] == [30, 100, 60] and all(isinstance(n, int) for n in config["n_train"])
     ridge = config["methods"]["Ridge"]
     assert ridge["params"] == {"alpha": 0.001, "input_scaling": "pooled"}
-    assert ridge["grid"] == {"alpha": [0.001, 1000.0, -200.0, 10]} and ridge["cv_params"] == {"alpha": 0.1}
+    assert ridge["grid"] == {"alpha": [0.001, 1000.0, -200.0, 10]} and ridge["cv_params"] == {
+        "alpha": 0.1
+    }
     assert config["methods"]["PM"]["grid"] == "default"
     assert config["study"] == "1e3" and ridge["label"] == "1e3"  # string keys untouched
     assert config["datasets"]["mocap"]["walk"] == {"n_frames": 200, "files": ["1e3"]}
     assert config["features"]["render"] == {"view_azimuth_deg": 10.0, "image_size": [128, 128]}
-    assert isinstance(config["features"]["render"]["view_azimuth_deg"], float)  # a number key stays a float
+    assert isinstance(
+        config["features"]["render"]["view_azimuth_deg"], float
+    )  # a number key stays a float
     assert "methods.Ridge.params.alpha" in changed and "study" not in changed
 
 
@@ -130,7 +151,11 @@ def test_every_shipped_configuration_is_unchanged_by_the_number_reading():
 def test_true_false_strings_read_as_booleans_where_the_schema_wants_one():
     """`--config job_server=false` reaches the config as the string 'false' (Snakemake parses only Python's
     True/False) and failed the schema; it is a boolean now. Strings elsewhere keep their text."""
-    config = {"job_server": "false", "study": "true", "methods": {"Ridge": {"params": {"flag": "false"}}}}
+    config = {
+        "job_server": "false",
+        "study": "true",
+        "methods": {"Ridge": {"params": {"flag": "false"}}},
+    }
     changed = retype_yaml_numbers(config, load_schema(*SCHEMAS))
     assert config["job_server"] is False and changed == ["job_server"]
     assert config["study"] == "true" and config["methods"]["Ridge"]["params"]["flag"] == "false"

@@ -62,7 +62,9 @@ def test_heading_transform_round_trip_and_layout():
     back = t.inverse(Z)
     np.testing.assert_allclose(wrap_degrees(back - Y), 0.0, atol=1e-9)
     assert get_pose_transform("none").forward(Y) is not None
-    with pytest.raises(InputError, match="pose_transform must be 'none' or 'heading'; got 'sincos'"):
+    with pytest.raises(
+        InputError, match="pose_transform must be 'none' or 'heading'; got 'sincos'"
+    ):
         get_pose_transform("sincos")
 
 

@@ -12,7 +12,9 @@ TRIALS = np.repeat(np.arange(10), 60)  # 10 trials of 60 frames, as the mocap ru
 @pytest.mark.parametrize("n_train", [30, 100, 200])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_no_test_frame_shares_a_trial_with_a_training_frame(n_train, seed):
-    train, test = make_split(600, n_train, protocol="cross_trial", seed=seed, min_test=100, trials=TRIALS)
+    train, test = make_split(
+        600, n_train, protocol="cross_trial", seed=seed, min_test=100, trials=TRIALS
+    )
     assert train.size == n_train and np.unique(train).size == n_train and test.size >= 100
     assert not set(TRIALS[train]) & set(TRIALS[test])
     assert set(test) == set(np.flatnonzero(np.isin(TRIALS, TRIALS[test])))  # whole trials
@@ -21,8 +23,12 @@ def test_no_test_frame_shares_a_trial_with_a_training_frame(n_train, seed):
 
 
 def test_the_held_out_trials_change_with_the_seed():
-    held = {tuple(np.unique(TRIALS[make_split(600, 30, protocol="cross_trial", seed=s, trials=TRIALS)[1]]))
-            for s in range(6)}
+    held = {
+        tuple(
+            np.unique(TRIALS[make_split(600, 30, protocol="cross_trial", seed=s, trials=TRIALS)[1]])
+        )
+        for s in range(6)
+    }
     assert len(held) > 1
 
 
@@ -42,7 +48,11 @@ def test_a_job_on_features_with_trials_uses_the_trials(tmp_path):
     np.savez(tmp_path / "f.npz", X=X, Y=Y, trial_index=TRIALS)
     feats = load_features(tmp_path / "f.npz")
     spec = JobSpec("mocap", "run", "NN1", 100, 0, protocol="cross_trial", pose_transform="none")
-    row, arrays = run_job(spec, feats, estimator="bsrbench.models.reference:NearestNeighbourRegressor",
-                          params={"n_neighbors": 1})
+    row, arrays = run_job(
+        spec,
+        feats,
+        estimator="bsrbench.models.reference:NearestNeighbourRegressor",
+        params={"n_neighbors": 1},
+    )
     assert not set(TRIALS[arrays["train"]]) & set(TRIALS[arrays["test"]])
     assert row["protocol"] == "cross_trial" and row["n_test"] == arrays["test"].size

@@ -60,7 +60,9 @@ def test_checksum_mismatch_leaves_no_output(tmp_path):
     wrong = ("0" if good[0] != "0" else "1") + good[1:]
     (tmp_path / "SHA256SUMS").write_text(f"{wrong}  x63.mat\n")
     out = tmp_path / "out" / "golf.npz"
-    with pytest.raises(DataFileError, match=rf"x63\.mat: checksum mismatch: expected sha256 {wrong} .* got {good}"):
+    with pytest.raises(
+        DataFileError, match=rf"x63\.mat: checksum mismatch: expected sha256 {wrong} .* got {good}"
+    ):
         build_mat_features(mat, out, checksums=tmp_path / "SHA256SUMS")
     assert not out.exists()
     (tmp_path / "SHA256SUMS").write_text(f"{good}  other.mat\n")
@@ -71,7 +73,9 @@ def test_checksum_mismatch_leaves_no_output(tmp_path):
 def test_mat_without_y(tmp_path):
     p = tmp_path / "noy.mat"
     scipy.io.savemat(p, {"X": np.ones((10, 4)), "Z": np.ones((10, 6))})
-    with pytest.raises(DataFileError, match=r"noy\.mat: has no variable 'Y' \(variables: \['X', 'Z'\]\)"):
+    with pytest.raises(
+        DataFileError, match=r"noy\.mat: has no variable 'Y' \(variables: \['X', 'Z'\]\)"
+    ):
         load_feature_mat(p, n_frames=5)
     scipy.io.savemat(p, {"Y": np.ones((10, 6))})
     with pytest.raises(DataFileError, match=r"has no variable 'X'"):
@@ -84,7 +88,9 @@ def test_nan_in_features_is_rejected_without_output(tmp_path):
     X[3, 2] = np.nan
     scipy.io.savemat(p, {"X": X, "Y": np.zeros((10, 6))})
     out = tmp_path / "nan.npz"
-    with pytest.raises(InputError, match=r"nan\.mat: X has 1 non-finite value\(s\), first at row 3, column 2"):
+    with pytest.raises(
+        InputError, match=r"nan\.mat: X has 1 non-finite value\(s\), first at row 3, column 2"
+    ):
         build_mat_features(p, out, n_frames=8)
     assert not out.exists()
     with pytest.raises(InputError, match=r"demo: Y has 1 non-finite"):
@@ -97,20 +103,34 @@ def test_nan_error_names_the_files_row_and_column(tmp_path):
     Y = np.zeros((10, 6))
     Y[6, 4] = np.nan  # selected row 2 of rows [0, 3, 6, 9]; column 1 of the 3 kept columns
     scipy.io.savemat(p, {"feat": np.ones((10, 4)), "pose": Y})
-    with pytest.raises(InputError, match=r"pose\.mat: pose has 1 non-finite value\(s\), first at row 6, column 4 "
-                                         r"of the file \(0-based\) \(nan\)"):
-        load_feature_mat(p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose")
+    with pytest.raises(
+        InputError,
+        match=r"pose\.mat: pose has 1 non-finite value\(s\), first at row 6, column 4 "
+        r"of the file \(0-based\) \(nan\)",
+    ):
+        load_feature_mat(
+            p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose"
+        )
     X = np.ones((10, 4))
     X[9, 3] = np.inf
     scipy.io.savemat(p, {"feat": X, "pose": np.zeros((10, 6))})
-    with pytest.raises(InputError, match=r"pose\.mat: feat has 1 non-finite value\(s\), first at row 9, column 3 "):
-        load_feature_mat(p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose")
+    with pytest.raises(
+        InputError, match=r"pose\.mat: feat has 1 non-finite value\(s\), first at row 9, column 3 "
+    ):
+        load_feature_mat(
+            p, n_frames=4, frame_selection="spread", drop_y_columns=3, x_key="feat", y_key="pose"
+        )
     # a features .npz is read whole: its rows and columns are the file's
     npz = tmp_path / "feat.npz"
     Y = np.zeros((5, 3))
     Y[4, 2] = np.nan
-    np.savez(npz, X=np.ones((5, 2)), Y=Y, frames=np.arange(5), angle_names=np.array(["a", "b", "c"]))
-    with pytest.raises(InputError, match=r"feat\.npz: Y has 1 non-finite value\(s\), first at row 4, column 2 \(nan\)"):
+    np.savez(
+        npz, X=np.ones((5, 2)), Y=Y, frames=np.arange(5), angle_names=np.array(["a", "b", "c"])
+    )
+    with pytest.raises(
+        InputError,
+        match=r"feat\.npz: Y has 1 non-finite value\(s\), first at row 4, column 2 \(nan\)",
+    ):
         load_features(npz)
 
 
@@ -124,7 +144,9 @@ def test_mat_shorter_than_frames_asked(tmp_path):
 def test_select_frames():
     np.testing.assert_array_equal(select_frames(700, 5, "first"), np.arange(5))
     np.testing.assert_array_equal(select_frames(9, 5, "spread"), [0, 2, 4, 6, 8])
-    with pytest.raises(InputError, match=r"frame_selection must be 'first' or 'spread'; got 'last'"):
+    with pytest.raises(
+        InputError, match=r"frame_selection must be 'first' or 'spread'; got 'last'"
+    ):
         select_frames(9, 5, "last")
 
 
@@ -152,16 +174,29 @@ def test_prepare_motion_authors_protocol(tmp_path):
     the first n_frames; fewer than asked with fewer_frames use_all; the header count agrees."""
     trials = [CMU / "09_01.bvh", CMU / "09_02.bvh"]  # 149 and 131 frames
     out = tmp_path / "run.npz"
-    sel = prepare_motion(trials, out, n_frames=600, frame_selection="first", skip_frames=6, frame_step=4,
-                         fewer_frames="use_all")
+    sel = prepare_motion(
+        trials,
+        out,
+        n_frames=600,
+        frame_selection="first",
+        skip_frames=6,
+        frame_step=4,
+        fewer_frames="use_all",
+    )
     expect = [(0, f) for f in range(8, 149, 4)] + [(1, f) for f in range(8, 131, 4)]
     assert sel.n_frames == len(expect) == count_motion_frames(trials, 6, 4)
     np.testing.assert_array_equal(np.c_[sel.trial_index, sel.trial_frames], expect)
     with np.load(out) as z:
         assert int(z["frame_step"]) == 4 and str(z["frame_selection"]) == "first"
         assert "one frame in 4 of the 120 fps trials (30 fps)" in str(z["frame_protocol"])
-    first = prepare_motion(trials, tmp_path / "r10.npz", n_frames=10, frame_selection="first", skip_frames=6,
-                           frame_step=4)
+    first = prepare_motion(
+        trials,
+        tmp_path / "r10.npz",
+        n_frames=10,
+        frame_selection="first",
+        skip_frames=6,
+        frame_step=4,
+    )
     np.testing.assert_array_equal(first.trial_frames, np.arange(8, 48, 4))
     assert count_motion_frames([CMU / "09_01.bvh", tmp_path / "missing.bvh"], 6, 4) is None
 
@@ -194,7 +229,9 @@ def test_prepare_motion_checks_checksums(tmp_path):
 
 def test_features_round_trip_and_missing_file(tmp_path):
     rng = np.random.default_rng(0)
-    fs = FeatureSet(rng.random((6, 4)), rng.random((6, 3)), np.arange(6), ["a", "b", "c"], {"activity": "x"})
+    fs = FeatureSet(
+        rng.random((6, 4)), rng.random((6, 3)), np.arange(6), ["a", "b", "c"], {"activity": "x"}
+    )
     save_features(tmp_path / "f.npz", fs)
     back = load_features(tmp_path / "f.npz")
     np.testing.assert_array_equal(back.X, fs.X)
@@ -219,7 +256,10 @@ def _site(tmp_path):
 
 
 def test_cmu_url():
-    assert cmu_url("http://mocap.cs.cmu.edu/subjects", "9", "12") == "http://mocap.cs.cmu.edu/subjects/09/09_12.amc"
+    assert (
+        cmu_url("http://mocap.cs.cmu.edu/subjects", "9", "12")
+        == "http://mocap.cs.cmu.edu/subjects/09/09_12.amc"
+    )
     assert cmu_url("http://x/subjects/", 49) == "http://x/subjects/49/49.asf"
 
 
@@ -233,9 +273,17 @@ def test_download_from_local_url(tmp_path):
     assert (dest / "01_01.amc.sha256").read_text().split() == [d_amc, "01_01.amc"]
     verify_checksum(dest / "01_01.amc", "sidecar")
     # With the digest known in advance, a wrong one is refused and nothing is written.
-    with pytest.raises(DataFileError, match=r"checksum mismatch for file://.*01_01\.amc: expected sha256 f{64}"):
-        download_cmu_trial("01", "01", tmp_path / "dl2" / "01_01.amc", dest / "01.asf", base_url=base,
-                           expected_sha256="f" * 64)
+    with pytest.raises(
+        DataFileError, match=r"checksum mismatch for file://.*01_01\.amc: expected sha256 f{64}"
+    ):
+        download_cmu_trial(
+            "01",
+            "01",
+            tmp_path / "dl2" / "01_01.amc",
+            dest / "01.asf",
+            base_url=base,
+            expected_sha256="f" * 64,
+        )
     assert not (tmp_path / "dl2" / "01_01.amc").exists()
 
 
@@ -245,7 +293,10 @@ def test_download_that_does_not_parse_leaves_nothing(tmp_path):
     amc.write_text(amc.read_text().replace("lradius 45.0", "lradius"))
     dest = tmp_path / "dl"
     download_cmu_skeleton(1, dest / "01.asf", base_url=base)
-    with pytest.raises(DataFileError, match=r"01_01\.amc: downloaded from file://.* but does not parse: .*'lradius' has 0 values"):
+    with pytest.raises(
+        DataFileError,
+        match=r"01_01\.amc: downloaded from file://.* but does not parse: .*'lradius' has 0 values",
+    ):
         download_cmu_trial(1, 1, dest / "01_01.amc", dest / "01.asf", base_url=base)
     assert sorted(p.name for p in dest.iterdir()) == ["01.asf", "01.asf.sha256"]
     with pytest.raises(DataFileError, match=r"download from file://.*/02/02_01\.amc failed"):

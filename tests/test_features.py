@@ -41,7 +41,9 @@ def test_contour_of_rectangle():
     # Pixel centres of the border: 2 * (20 - 1) + 2 * (10 - 1) unit steps, each border pixel once.
     assert contour_length(c) == pytest.approx(56.0)
     assert len(c) == 56 and len(np.unique(c, axis=0)) == 56
-    assert set(map(tuple, c.astype(int))) == {(x, y) for y, x in zip(*np.nonzero(boundary_pixels(mask)))}
+    assert set(map(tuple, c.astype(int))) == {
+        (x, y) for y, x in zip(*np.nonzero(boundary_pixels(mask)))
+    }
 
 
 def test_contour_of_disc():
@@ -103,7 +105,7 @@ def naive_shape_contexts(points, n_radial=5, n_angular=12, r_inner=0.125, r_oute
             if r >= r_outer:
                 continue
             rb = 0 if r < r_inner else int(np.searchsorted(edges, r, side="right"))
-            ab = int(((np.arctan2(dy, dx) % (2 * np.pi)) // (2 * np.pi / n_angular)))
+            ab = int((np.arctan2(dy, dx) % (2 * np.pi)) // (2 * np.pi / n_angular))
             out[i, rb * n_angular + min(ab, n_angular - 1)] += 1
     return out
 
@@ -163,7 +165,10 @@ def test_silhouette_descriptors_and_errors():
 def descriptors():
     rng = np.random.default_rng(11)
     centres = rng.uniform(0, 10, size=(12, 60))
-    return [centres[rng.integers(0, 12, size=40)] + rng.normal(scale=0.8, size=(40, 60)) for _ in range(30)]
+    return [
+        centres[rng.integers(0, 12, size=40)] + rng.normal(scale=0.8, size=(40, 60))
+        for _ in range(30)
+    ]
 
 
 def test_codebook_deterministic_for_seed(descriptors):

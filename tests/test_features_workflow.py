@@ -24,9 +24,9 @@ SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 SNAKEFILE = f"""\
 import json
 configfile: "tiny.yaml"
-include: "{RULES / 'datasets.smk'}"
-include: "{RULES / 'mocap.smk'}"
-include: "{RULES / 'features.smk'}"
+include: "{RULES / "datasets.smk"}"
+include: "{RULES / "mocap.smk"}"
+include: "{RULES / "features.smk"}"
 Path("availability.json").write_text(json.dumps(data_availability()))
 
 
@@ -37,24 +37,51 @@ rule all_features:
 """
 
 TINY_FRAMES = 3  # the hand-written AMC trial has 3 frames
-RENDER = {"image_size": [40, 40], "view_azimuth_deg": 0.0, "view_elevation_deg": 0.0, "body_scale": None}
+RENDER = {
+    "image_size": [40, 40],
+    "view_azimuth_deg": 0.0,
+    "view_elevation_deg": 0.0,
+    "body_scale": None,
+}
 
 
 def _config(tmp, base_url):
     return {
         "datasets": {
             "hsc": {
-                "golf": {"paper_activity": "Golf", "format": "mat", "files": [str(FEAT / "x63.mat")],
-                         "checksums": str(FEAT / "SHA256SUMS"), "n_frames": 40, "frame_selection": "first"},
+                "golf": {
+                    "paper_activity": "Golf",
+                    "format": "mat",
+                    "files": [str(FEAT / "x63.mat")],
+                    "checksums": str(FEAT / "SHA256SUMS"),
+                    "n_frames": 40,
+                    "frame_selection": "first",
+                },
             },
             "mocap": {
-                "walk": {"paper_activity": "Walk", "format": "bvh", "files": [str(CMU / "12_02.bvh")],
-                         "checksums": str(CMU / "SHA256SUMS"), "n_frames": 6},
-                "tiny_amc": {"paper_activity": "Navigate", "format": "amc", "cmu_trials": ["01_01"],
-                             "checksums": "sidecar", "skeleton": "asf", "skip_frames": 0,
-                             "n_frames": TINY_FRAMES},
-                "not_here": {"paper_activity": "Acrobatics", "format": "amc", "cmu_trials": ["49_21"],
-                             "checksums": "sidecar", "enabled": False},
+                "walk": {
+                    "paper_activity": "Walk",
+                    "format": "bvh",
+                    "files": [str(CMU / "12_02.bvh")],
+                    "checksums": str(CMU / "SHA256SUMS"),
+                    "n_frames": 6,
+                },
+                "tiny_amc": {
+                    "paper_activity": "Navigate",
+                    "format": "amc",
+                    "cmu_trials": ["01_01"],
+                    "checksums": "sidecar",
+                    "skeleton": "asf",
+                    "skip_frames": 0,
+                    "n_frames": TINY_FRAMES,
+                },
+                "not_here": {
+                    "paper_activity": "Acrobatics",
+                    "format": "amc",
+                    "cmu_trials": ["49_21"],
+                    "checksums": "sidecar",
+                    "enabled": False,
+                },
             },
         },
         "features": {
@@ -62,19 +89,36 @@ def _config(tmp, base_url):
             "render": RENDER,
             "shape_context": {"n_points": 24},
             "preview_frames": 4,
-            "codebook": {"files": [str(CMU / "codebook" / "05_01.bvh"), str(CMU / "codebook" / "13_11.bvh")],
-                         "checksums": str(CMU / "SHA256SUMS"), "frames_per_trial": 4, "n_centres": 6},
+            "codebook": {
+                "files": [str(CMU / "codebook" / "05_01.bvh"), str(CMU / "codebook" / "13_11.bvh")],
+                "checksums": str(CMU / "SHA256SUMS"),
+                "frames_per_trial": 4,
+                "n_centres": 6,
+            },
         },
-        "download": {"base_url": base_url, "dir": "downloads",
-                     "checksums": {"01.asf": sha256_file(DATA / "01.asf")}},
+        "download": {
+            "base_url": base_url,
+            "dir": "downloads",
+            "checksums": {"01.asf": sha256_file(DATA / "01.asf")},
+        },
     }
 
 
 def _run(workdir, *targets):
     r = subprocess.run(
-        [str(SNAKEMAKE), *targets, "--cores", "2", "--directory", str(workdir),
-         "--snakefile", str(workdir / "Snakefile")],
-        capture_output=True, text=True, timeout=300,
+        [
+            str(SNAKEMAKE),
+            *targets,
+            "--cores",
+            "2",
+            "--directory",
+            str(workdir),
+            "--snakefile",
+            str(workdir / "Snakefile"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     return r
@@ -117,8 +161,14 @@ def test_features_rules_end_to_end(tmp_path):
         centres = z["centres"]
         assert list(z["trial_ids"]) == ["05_01", "13_11"]
     again = learn_codebook_from_trials(
-        cfg["features"]["codebook"]["files"], tmp_path / "again.npz", frames_per_trial=4, n_centres=6,
-        render=RENDER, n_points=24, seed=3, skip_frames=6,
+        cfg["features"]["codebook"]["files"],
+        tmp_path / "again.npz",
+        frames_per_trial=4,
+        n_centres=6,
+        render=RENDER,
+        n_points=24,
+        seed=3,
+        skip_frames=6,
     )
     np.testing.assert_array_equal(again, centres)
 
@@ -128,7 +178,10 @@ def test_features_rules_end_to_end(tmp_path):
     by = {(r["source"], r["paper_activity"]): r for r in rows}
     assert by[("mocap", "Walk")]["available"] and by[("hsc", "Golf")]["available"]
     acro = by[("mocap", "Acrobatics")]
-    assert not acro["available"] and acro["missing"] == ["downloads/49/49_21.amc", "downloads/49/49.asf"]
+    assert not acro["available"] and acro["missing"] == [
+        "downloads/49/49_21.amc",
+        "downloads/49/49.asf",
+    ]
     assert "downloads/49/49_21.amc" in acro["command"]
     assert by[("hsc", "Walk")]["activity"] is None and by[("hsc", "Walk")]["command"] is None
 
@@ -139,8 +192,19 @@ def test_bad_data_config_is_rejected_naming_the_key(tmp_path):
     (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(cfg))
     (tmp_path / "Snakefile").write_text(SNAKEFILE)
     r = subprocess.run(
-        [str(SNAKEMAKE), "-n", "--cores", "1", "--directory", str(tmp_path), "--snakefile", str(tmp_path / "Snakefile")],
-        capture_output=True, text=True, timeout=120,
+        [
+            str(SNAKEMAKE),
+            "-n",
+            "--cores",
+            "1",
+            "--directory",
+            str(tmp_path),
+            "--snakefile",
+            str(tmp_path / "Snakefile"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert r.returncode != 0
     out = r.stdout + r.stderr
@@ -149,8 +213,19 @@ def test_bad_data_config_is_rejected_naming_the_key(tmp_path):
     cfg["features"]["codebook"]["n_centres"] = 1
     (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(cfg))
     r = subprocess.run(
-        [str(SNAKEMAKE), "-n", "--cores", "1", "--directory", str(tmp_path), "--snakefile", str(tmp_path / "Snakefile")],
-        capture_output=True, text=True, timeout=120,
+        [
+            str(SNAKEMAKE),
+            "-n",
+            "--cores",
+            "1",
+            "--directory",
+            str(tmp_path),
+            "--snakefile",
+            str(tmp_path / "Snakefile"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     out = r.stdout + r.stderr
     assert r.returncode != 0 and "n_centres" in out and "minimum" in out

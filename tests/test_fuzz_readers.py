@@ -21,13 +21,49 @@ from bsrbench.mocap import parse_amc, parse_asf, parse_bvh
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"
 CMU = ROOT / "resources" / "cmu-mocap"
-KEEP_FRAMES = 12  # vendored BVH files are cut to this many frames (with a matching Frames: line) to stay fast
+KEEP_FRAMES = (
+    12  # vendored BVH files are cut to this many frames (with a matching Frames: line) to stay fast
+)
 
 KEYWORDS = {
-    "bvh": ["HIERARCHY", "ROOT", "JOINT", "End", "Site", "{", "}", "OFFSET", "CHANNELS", "3", "6", "Xrotation",
-            "MOTION", "Frames:", "Frame Time:", "0.0083333"],
-    "asf": [":root", ":bonedata", ":hierarchy", ":units", "begin", "end", "name", "dof", "limits", "(", ")",
-            "axis", "XYZ", "rx", "inf", "bodymass", "root", ","],
+    "bvh": [
+        "HIERARCHY",
+        "ROOT",
+        "JOINT",
+        "End",
+        "Site",
+        "{",
+        "}",
+        "OFFSET",
+        "CHANNELS",
+        "3",
+        "6",
+        "Xrotation",
+        "MOTION",
+        "Frames:",
+        "Frame Time:",
+        "0.0083333",
+    ],
+    "asf": [
+        ":root",
+        ":bonedata",
+        ":hierarchy",
+        ":units",
+        "begin",
+        "end",
+        "name",
+        "dof",
+        "limits",
+        "(",
+        ")",
+        "axis",
+        "XYZ",
+        "rx",
+        "inf",
+        "bodymass",
+        "root",
+        ",",
+    ],
     "amc": [":DEGREES", ":RADIANS", "1", "2", "root", "lfemur", "lradius", "#", ","],
 }
 NOISE = "abcXYZ019.-+e_,:#(){} \t\u00e9\u00b3\u0661\ufeff"
@@ -38,7 +74,10 @@ def _bvh_sources():
     for p in sorted(CMU.glob("*.bvh")):
         lines = p.read_text().splitlines()
         k = next(i for i, ln in enumerate(lines) if ln.lower().startswith("frame time"))
-        head = [f"Frames: {KEEP_FRAMES}" if ln.lower().startswith("frames:") else ln for ln in lines[: k + 1]]
+        head = [
+            f"Frames: {KEEP_FRAMES}" if ln.lower().startswith("frames:") else ln
+            for ln in lines[: k + 1]
+        ]
         out[p.name] = "\n".join(head + lines[k + 1 : k + 1 + KEEP_FRAMES]) + "\n"
     return out
 
@@ -85,8 +124,12 @@ def mutate(text, fmt, rng):
 def _frames_declared_and_rows(text):
     """BVH, read independently: the Frames: value and the number of non-empty lines after Frame Time."""
     lines = re.split(r"\r\n|\r|\n", text.lstrip("\ufeff"))
-    k = next(i for i, ln in enumerate(lines) if " ".join(ln.split()).lower().startswith("frame time"))
-    frames = next(int(ln.split(":", 1)[1]) for ln in lines[:k] if ln.strip().lower().startswith("frames"))
+    k = next(
+        i for i, ln in enumerate(lines) if " ".join(ln.split()).lower().startswith("frame time")
+    )
+    frames = next(
+        int(ln.split(":", 1)[1]) for ln in lines[:k] if ln.strip().lower().startswith("frames")
+    )
     return frames, sum(1 for ln in lines[k + 1 :] if ln.strip())
 
 
@@ -102,7 +145,11 @@ def check_parsed(fmt, text, result):
         assert result.n_frames == len(ids) == int(ids[-1]) - int(ids[0]) + 1
         assert np.isfinite(result.motion).all()
     else:
-        bones = [j for j, n in enumerate(result.skeleton.joint_names) if j > 0 and not result.skeleton.end_site[j]]
+        bones = [
+            j
+            for j, n in enumerate(result.skeleton.joint_names)
+            if j > 0 and not result.skeleton.end_site[j]
+        ]
         code = "\n".join(ln.split("#")[0] for ln in re.split(r"\r\n|\r|\n", text))
         bonedata = re.split(r"(?im)^[ \t]*:hierarchy", code)[0]
         named = re.findall(r"(?im)^[ \t]*name[ \t,]+[^\s,]+[ \t,]*$", bonedata)
@@ -141,7 +188,7 @@ def fuzz(fmt, n, seed, tmp_path):
             counts["input_error" if ok else "other"] += 1
             if not ok:
                 others.append((name, i, f"no file/line: {exc}"))
-        except Exception as exc:  # noqa: BLE001 - counted and reported
+        except Exception as exc:
             counts["other"] += 1
             others.append((name, i, f"{type(exc).__name__}: {exc}"))
         else:
@@ -179,7 +226,9 @@ if __name__ == "__main__":
     for fmt in ("bvh", "asf", "amc"):
         with tempfile.TemporaryDirectory() as d:
             counts, others = fuzz(fmt, n, seed, Path(d))
-        print(f"{fmt}: mutants {counts['mutants']}, parsed {counts['parsed']}, InputErrors {counts['input_error']}, "
-              f"other exceptions {counts['other']}")
+        print(
+            f"{fmt}: mutants {counts['mutants']}, parsed {counts['parsed']}, InputErrors {counts['input_error']}, "
+            f"other exceptions {counts['other']}"
+        )
         for o in others[:10]:
             print("   ", o)

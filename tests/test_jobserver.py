@@ -33,8 +33,14 @@ def _server_files(path):
 
 
 def _ping(tmp_path, **params):
-    return {"input": {}, "output": {"path": str(tmp_path / "out.txt")}, "params": params, "wildcards": {},
-            "log": [str(tmp_path / "ping.log")], "threads": 1}
+    return {
+        "input": {},
+        "output": {"path": str(tmp_path / "out.txt")},
+        "params": params,
+        "wildcards": {},
+        "log": [str(tmp_path / "ping.log")],
+        "threads": 1,
+    }
 
 
 def test_job_runs_in_a_fork_of_one_server(server_socket, tmp_path):
@@ -59,7 +65,9 @@ def test_a_job_inside_a_batch_system_job_runs_in_process(server_socket, tmp_path
 
 
 def test_error_reaches_the_client_and_the_log(server_socket, tmp_path):
-    with pytest.raises(SystemExit, match=r"(?s)failed in the job server; see .*ping\.log.*ping asked to fail: boom"):
+    with pytest.raises(
+        SystemExit, match=r"(?s)failed in the job server; see .*ping\.log.*ping asked to fail: boom"
+    ):
         jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path, fail="boom"))
     assert "ValueError: ping asked to fail: boom" in (tmp_path / "ping.log").read_text()
     assert not (tmp_path / "out.txt").exists()
@@ -105,7 +113,9 @@ def test_killed_client_kills_its_worker(server_socket, tmp_path):
 def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
     rng = np.random.default_rng(0)
     features = tmp_path / "f.npz"
-    np.savez(features, X=rng.gamma(2.0, 1.0, (80, 6)), Y=rng.uniform(-90, 90, (80, 5)), heading_column=2)
+    np.savez(
+        features, X=rng.gamma(2.0, 1.0, (80, 6)), Y=rng.uniform(-90, 90, (80, 5)), heading_column=2
+    )
     rows = {}
     for mode in ("server", "local"):
         out = tmp_path / mode
@@ -113,12 +123,24 @@ def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
         job = {
             "input": {"features": str(features), "cv": [], "code": []},
             "output": {"row": str(out / "row.json"), "predictions": str(out / "pred.npz")},
-            "params": {"estimator": "bsrbench.models.bsr:BayesianSR",
-                       "fixed": {"n_atoms": 4, "n_iter": 30, "n_burn_in": 10, "thin": 2},
-                       "cv_mode": "none", "paper_activity": "", "pose_transform": "none", "min_test": 10,
-                       "gap": 5, "job_server": True},
-            "wildcards": {"protocol": "random", "source": "toy", "activity": "a", "method": "PM",
-                          "n_train": "30", "seed": "1"},
+            "params": {
+                "estimator": "bsrbench.models.bsr:BayesianSR",
+                "fixed": {"n_atoms": 4, "n_iter": 30, "n_burn_in": 10, "thin": 2},
+                "cv_mode": "none",
+                "paper_activity": "",
+                "pose_transform": "none",
+                "min_test": 10,
+                "gap": 5,
+                "job_server": True,
+            },
+            "wildcards": {
+                "protocol": "random",
+                "source": "toy",
+                "activity": "a",
+                "method": "PM",
+                "n_train": "30",
+                "seed": "1",
+            },
             "log": [str(out / "job.log")],
             "threads": 1,
         }
@@ -146,14 +168,20 @@ def test_shutdown_stops_the_server_and_removes_its_files(server_socket, tmp_path
     assert jobserver.shutdown(server_socket) is False  # nothing to stop: a no-op
 
 
-def test_server_stops_when_the_snakemake_process_it_served_is_gone(server_socket, tmp_path, monkeypatch):
+def test_server_stops_when_the_snakemake_process_it_served_is_gone(
+    server_socket, tmp_path, monkeypatch
+):
     """A killed Snakemake run (no onsuccess/onerror hook) still stops the server, well before the idle timeout."""
     owner = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
     monkeypatch.setenv(jobserver.OWNER_VAR, str(owner.pid))
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
     server_pid = _listening_pid(server_socket)
     time.sleep(1.5)
-    assert _server_files(server_socket) == ["js.sock", "js.sock.lock", "js.sock.log"]  # owner alive: serving
+    assert _server_files(server_socket) == [
+        "js.sock",
+        "js.sock.lock",
+        "js.sock.log",
+    ]  # owner alive: serving
     owner.kill()
     owner.wait()
     _wait_gone(server_pid, timeout=10)
@@ -173,7 +201,9 @@ def test_shutdown_removes_what_a_killed_server_left(server_socket, tmp_path):
 def _listening_pid(path):
     """The pid of the process listening on the Unix socket ``path`` (from /proc/net/unix and /proc/*/fd)."""
     inode = next(  # the listening socket (flag __SO_ACCEPTCON), not a connection accepted on it
-        ln.split()[6] for ln in open("/proc/net/unix") if ln.rstrip().endswith(str(path)) and ln.split()[3] == "00010000"
+        ln.split()[6]
+        for ln in open("/proc/net/unix")
+        if ln.rstrip().endswith(str(path)) and ln.split()[3] == "00010000"
     )
     for fd_dir in Path("/proc").glob("[0-9]*/fd"):
         try:
@@ -210,7 +240,11 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
 
     wildcards = Wildcards(method="PM")
     make = jobserver.job_params(params)
-    job_json = make(wildcards, {"features": "f.npz", "code": ["a.py", "b.py"]}, {"path": str(tmp_path / "out.txt")})
+    job_json = make(
+        wildcards,
+        {"features": "f.npz", "code": ["a.py", "b.py"]},
+        {"path": str(tmp_path / "out.txt")},
+    )
     job = json.loads(job_json)
     assert job["params"] == {"estimator": "x:Y", "n": 3, "per_method": "PM!"}
     assert job["input"] == {"features": "f.npz", "code": ["a.py", "b.py"]}
@@ -219,17 +253,44 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
         log = tmp_path / f"job{use}.log"
         (tmp_path / "out.txt").unlink(missing_ok=True)
         env = dict(os.environ, **{jobserver.USE_SERVER_VAR: use})
-        proc = subprocess.Popen([sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:ping",
-                                 "--threads", "1", "--log", str(log), job_json], env=env, cwd=tmp_path)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "bsrbench.jobserver",
+                "job",
+                "bsrbench.jobserver:ping",
+                "--threads",
+                "1",
+                "--log",
+                str(log),
+                job_json,
+            ],
+            env=env,
+            cwd=tmp_path,
+        )
         assert proc.wait(timeout=120) == 0
         worker = int((tmp_path / "out.txt").read_text())
         # through the server the job runs in a fork of the server; switched off, in the command's own process
         assert (worker != proc.pid) if use == "1" else (worker == proc.pid)
         assert "ping from pid" in log.read_text()
     # a failing job: non-zero exit, the traceback in the job's log
-    bad = subprocess.run([sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:no_such_job",
-                          "--log", str(tmp_path / "bad.log"), job_json], env=dict(os.environ), cwd=tmp_path,
-                         capture_output=True, text=True)
+    bad = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bsrbench.jobserver",
+            "job",
+            "bsrbench.jobserver:no_such_job",
+            "--log",
+            str(tmp_path / "bad.log"),
+            job_json,
+        ],
+        env=dict(os.environ),
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
     assert bad.returncode != 0
     assert "no_such_job" in (tmp_path / "bad.log").read_text()
 
@@ -238,7 +299,12 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
 def test_command_line_without_a_socket_prints_usage(tmp_path, args, code):
     """`python -m bsrbench.jobserver --help` (or no argument) prints the usage; it used to start a server on a
     socket named '--help' (or fail with an IndexError)."""
-    out = subprocess.run([sys.executable, "-m", "bsrbench.jobserver", *args], cwd=tmp_path, capture_output=True,
-                         text=True, timeout=60)
+    out = subprocess.run(
+        [sys.executable, "-m", "bsrbench.jobserver", *args],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert out.returncode == code and "usage: python -m bsrbench.jobserver SOCKET" in out.stderr
     assert list(tmp_path.iterdir()) == []

@@ -45,7 +45,11 @@ def _header_channels(path):
 def test_parse_real_bvh_reads_channel_orders_from_header(name):
     d = parse_bvh(CMU / name)
     header = _header_channels(CMU / name)
-    parsed = [(n, c) for n, c, e in zip(d.skeleton.joint_names, d.skeleton.channels, d.skeleton.end_site) if not e]
+    parsed = [
+        (n, c)
+        for n, c, e in zip(d.skeleton.joint_names, d.skeleton.channels, d.skeleton.end_site)
+        if not e
+    ]
     assert parsed == header
     lines = (CMU / name).read_text().splitlines()
     frames_line = next(ln for ln in lines if ln.startswith("Frames:"))
@@ -62,7 +66,9 @@ def test_fk_bone_lengths_constant_and_equal_offsets(name):
     pos = d.positions()
     lengths = bone_lengths(pos, d.skeleton.parents)
     np.testing.assert_allclose(lengths, np.broadcast_to(lengths[0], lengths.shape), atol=1e-9)
-    np.testing.assert_allclose(lengths[0, 1:], np.linalg.norm(d.skeleton.offsets[1:], axis=1), atol=1e-9)
+    np.testing.assert_allclose(
+        lengths[0, 1:], np.linalg.norm(d.skeleton.offsets[1:], axis=1), atol=1e-9
+    )
     # y is up: the head is above the feet in every frame (frame 0 is the converter's rest pose).
     names = d.skeleton.joint_names
     head = names.index("head" if "head" in names else "Head")
@@ -72,8 +78,11 @@ def test_fk_bone_lengths_constant_and_equal_offsets(name):
 
 def test_fk_single_rotation_matches_hand_computation():
     skel = Skeleton(
-        ["a", "b", "b_End"], [-1, 0, 1], [[0, 0, 0], [1, 0, 0], [0, 2, 0]],
-        [("Xposition", "Yposition", "Zposition", "Zrotation"), ("Xrotation",), ()], [False, False, True],
+        ["a", "b", "b_End"],
+        [-1, 0, 1],
+        [[0, 0, 0], [1, 0, 0], [0, 2, 0]],
+        [("Xposition", "Yposition", "Zposition", "Zrotation"), ("Xrotation",), ()],
+        [False, False, True],
     )
     motion = np.array([[1.0, 2.0, 3.0, 90.0, 90.0]])
     pos = skeleton_positions(skel, motion)[0]
@@ -89,7 +98,10 @@ def test_forward_kinematics_composes_parent_rotations():
     F = 4
     rng = np.random.default_rng(0)
     ang = rng.uniform(-180, 180, size=(F, 3))
-    R = np.stack([axis_rotation(2, ang[:, 0]), axis_rotation(0, ang[:, 1]), axis_rotation(1, ang[:, 2])], axis=1)
+    R = np.stack(
+        [axis_rotation(2, ang[:, 0]), axis_rotation(0, ang[:, 1]), axis_rotation(1, ang[:, 2])],
+        axis=1,
+    )
     T = np.broadcast_to(np.array([[0.0, 0, 0], [0, 1, 0], [0, 0, 1]]), (F, 3, 3)).copy()
     P, G = forward_kinematics(parents, R, T)
     for f in range(F):
@@ -116,9 +128,21 @@ def test_round_trip_unusual_channel_order_and_equivalence(tmp_path):
     names = ["r", "j", "j_End"]
     offsets = [[0, 0, 0], [0, 1, 0], [1, 0, 0]]
     motion = rng.uniform(-90, 90, size=(5, 6))
-    a = Skeleton(names, [-1, 0, 1], offsets, [("Yposition", "Xrotation", "Yrotation"), ("Zrotation", "Xrotation", "Yrotation"), ()], [0, 0, 1])
+    a = Skeleton(
+        names,
+        [-1, 0, 1],
+        offsets,
+        [("Yposition", "Xrotation", "Yrotation"), ("Zrotation", "Xrotation", "Yrotation"), ()],
+        [0, 0, 1],
+    )
     # Same rotations, positions channel moved: only non-rotation channels may be reordered freely.
-    b = Skeleton(names, [-1, 0, 1], offsets, [("Xrotation", "Yrotation", "Yposition"), ("Zrotation", "Xrotation", "Yrotation"), ()], [0, 0, 1])
+    b = Skeleton(
+        names,
+        [-1, 0, 1],
+        offsets,
+        [("Xrotation", "Yrotation", "Yposition"), ("Zrotation", "Xrotation", "Yrotation"), ()],
+        [0, 0, 1],
+    )
     mb = motion[:, [1, 2, 0, 3, 4, 5]]
     write_bvh(tmp_path / "a.bvh", a, motion, 0.01)
     write_bvh(tmp_path / "b.bvh", b, mb, 0.01)
@@ -126,7 +150,13 @@ def test_round_trip_unusual_channel_order_and_equivalence(tmp_path):
     assert pb.skeleton.channels[0] == ("Xrotation", "Yrotation", "Yposition")
     np.testing.assert_allclose(pa.positions(), pb.positions(), atol=1e-9)
     # Reordering rotation channels changes the rotation (Euler order matters), so the header must be obeyed.
-    c = Skeleton(names, [-1, 0, 1], offsets, [("Yposition", "Xrotation", "Yrotation"), ("Xrotation", "Zrotation", "Yrotation"), ()], [0, 0, 1])
+    c = Skeleton(
+        names,
+        [-1, 0, 1],
+        offsets,
+        [("Yposition", "Xrotation", "Yrotation"), ("Xrotation", "Zrotation", "Yrotation"), ()],
+        [0, 0, 1],
+    )
     assert not np.allclose(skeleton_positions(c, motion[:, [0, 1, 2, 4, 3, 5]]), pa.positions())
 
 
@@ -155,7 +185,9 @@ def test_row_with_wrong_number_of_channels(tmp_path):
     lines[k] = " ".join(lines[k].split()[:-1])
     p = tmp_path / "w.bvh"
     p.write_text("\n".join(lines))
-    with pytest.raises(DataFileError, match=rf"w\.bvh: line {k + 1}: motion row 10 has 131 values; expected 132"):
+    with pytest.raises(
+        DataFileError, match=rf"w\.bvh: line {k + 1}: motion row 10 has 131 values; expected 132"
+    ):
         parse_bvh(p)
 
 
@@ -167,7 +199,9 @@ def test_non_number_in_motion(tmp_path):
     lines[k] = " ".join(t)
     p = tmp_path / "n.bvh"
     p.write_text("\n".join(lines))
-    with pytest.raises(DataFileError, match=rf"n\.bvh: line {k + 1}, value 8: 'abc' is not a number"):
+    with pytest.raises(
+        DataFileError, match=rf"n\.bvh: line {k + 1}, value 8: 'abc' is not a number"
+    ):
         parse_bvh(p)
 
 
@@ -192,7 +226,9 @@ def test_missing_file(tmp_path):
 def test_joint_map_naming_missing_joint():
     jm = list(JOINT_MAPS["daz"])
     jm[3] = "tail"
-    with pytest.raises(InputError, match=r"10_01\.bvh: joint_map names joint\(s\) \['tail'\] that the file lacks"):
+    with pytest.raises(
+        InputError, match=r"10_01\.bvh: joint_map names joint\(s\) \['tail'\] that the file lacks"
+    ):
         load_motion([CMU / "10_01.bvh"], joint_map=jm)
     with pytest.raises(InputError, match=r"lacks"):
         load_motion([CMU / "131_02.bvh"], skeleton_kind="daz")
@@ -245,8 +281,16 @@ def test_concatenation_and_frame_bookkeeping():
 
 
 def test_unwrap_removes_360_jumps(tmp_path):
-    skel = Skeleton(["r", "r_End"], [-1, 0], [[0, 0, 0], [0, 1, 0]], [("Yrotation", "Xrotation", "Zrotation"), ()], [0, 1])
-    yrot = np.array([0.0, 170.0, 179.0, -179.0, -170.0, 175.0, -175.0])  # a steady turn, wrapped into (-180, 180]
+    skel = Skeleton(
+        ["r", "r_End"],
+        [-1, 0],
+        [[0, 0, 0], [0, 1, 0]],
+        [("Yrotation", "Xrotation", "Zrotation"), ()],
+        [0, 1],
+    )
+    yrot = np.array(
+        [0.0, 170.0, 179.0, -179.0, -170.0, 175.0, -175.0]
+    )  # a steady turn, wrapped into (-180, 180]
     motion = np.column_stack([yrot, np.zeros_like(yrot), np.zeros_like(yrot)])
     write_bvh(tmp_path / "turn.bvh", skel, motion, 0.01)
     m = load_motion(tmp_path / "turn.bvh", joint_map=["r"], drop_first_frame=False)
@@ -282,7 +326,9 @@ def test_amc_matches_equivalent_bvh():
     assert amc.skeleton.joint_names == bvh.skeleton.joint_names
     np.testing.assert_allclose(amc.positions(), bvh.positions(), atol=1e-9)
     ma = load_motion(DATA / "01_01.amc", drop_first_frame=False)  # finds 01.asf beside the trial
-    mb = load_motion(DATA / "01_01_equivalent.bvh", joint_map=JOINT_MAPS["asf"], drop_first_frame=False)
+    mb = load_motion(
+        DATA / "01_01_equivalent.bvh", joint_map=JOINT_MAPS["asf"], drop_first_frame=False
+    )
     assert ma.skeleton_kind == "asf" and ma.angles.shape == (3, 57)
     assert sorted(ma.angle_names) == sorted(mb.angle_names)
     order = [mb.angle_names.index(n) for n in ma.angle_names]
@@ -298,12 +344,16 @@ def test_asf_bone_axis_is_applied(tmp_path):
     # Give lhumerus a 90 degree z axis; its rx then rotates the arm (along +x) about +y.
     i = text.index("name lhumerus")
     j = text.index("axis 0 0 0  XYZ", i)
-    text = text[:j] + "axis 0 0 90  XYZ" + text[j + len("axis 0 0 0  XYZ"):]
+    text = text[:j] + "axis 0 0 90  XYZ" + text[j + len("axis 0 0 0  XYZ") :]
     (tmp_path / "01.asf").write_text(text)
     amc = (DATA / "01_01.amc").read_text().splitlines()
     first_frame = amc[: amc.index("2")]
-    rest = [ln if ln.startswith((":", "#")) or ln == "1" else ln.split()[0] + " 0" * (len(ln.split()) - 1)
-            for ln in first_frame]
+    rest = [
+        ln
+        if ln.startswith((":", "#")) or ln == "1"
+        else ln.split()[0] + " 0" * (len(ln.split()) - 1)
+        for ln in first_frame
+    ]
     rest = [ln.replace("lhumerus 0 0 0", "lhumerus 30 0 0") for ln in rest]
     (tmp_path / "01_01.amc").write_text("\n".join(rest) + "\n")
     m = parse_amc(tmp_path / "01_01.amc", tmp_path / "01.asf")
@@ -321,18 +371,28 @@ def test_amc_bad_input(tmp_path):
     bad = list(lines)
     bad[k] = "lradius 45.0 3.0"
     (tmp_path / "01_01.amc").write_text("\n".join(bad))
-    with pytest.raises(DataFileError, match=rf"01_01\.amc: line {k + 1}: bone 'lradius' has 2 values; expected 1"):
+    with pytest.raises(
+        DataFileError, match=rf"01_01\.amc: line {k + 1}: bone 'lradius' has 2 values; expected 1"
+    ):
         parse_amc(tmp_path / "01_01.amc", tmp_path / "01.asf")
     bad = list(lines)
     bad[k] = "lradius forty"
     (tmp_path / "01_01.amc").write_text("\n".join(bad))
-    with pytest.raises(DataFileError, match=rf"line {k + 1}: bone 'lradius': 'forty' is not a number"):
+    with pytest.raises(
+        DataFileError, match=rf"line {k + 1}: bone 'lradius': 'forty' is not a number"
+    ):
         parse_amc(tmp_path / "01_01.amc", tmp_path / "01.asf")
     bad = [ln for i, ln in enumerate(lines) if i != k]
     (tmp_path / "01_01.amc").write_text("\n".join(bad))
     with pytest.raises(DataFileError, match=r"frame 1 lacks bones \['lradius'\]"):
         parse_amc(tmp_path / "01_01.amc", tmp_path / "01.asf")
-    text = (DATA / "01.asf").read_text().replace("    rtibia rfoot\n", "    rtibia rfoot\n    rfoot tail\n")
+    text = (
+        (DATA / "01.asf")
+        .read_text()
+        .replace("    rtibia rfoot\n", "    rtibia rfoot\n    rfoot tail\n")
+    )
     (tmp_path / "01.asf").write_text(text)
-    with pytest.raises(DataFileError, match=r"01\.asf: line \d+: hierarchy names unknown bone 'tail'"):
+    with pytest.raises(
+        DataFileError, match=r"01\.asf: line \d+: hierarchy names unknown bone 'tail'"
+    ):
         parse_asf(tmp_path / "01.asf")

@@ -11,10 +11,23 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SCANNED = ("README.md", "Snakefile", "bin", "config", "docs", "profiles", "src", "tests", "workflow", "benchmarks")
+SCANNED = (
+    "README.md",
+    "Snakefile",
+    "bin",
+    "config",
+    "docs",
+    "profiles",
+    "src",
+    "tests",
+    "workflow",
+    "benchmarks",
+)
 SUFFIXES = {".py", ".smk", ".md", ".yaml", ".yml", ".txt", ".tex", ""}
 # a document of the project cited from its text, optionally with a section: docs/model.md, section "Error metric"
-DOC_CITE = re.compile(r'docs/([A-Za-z0-9_.-]+\.md)(?:[,\s(]+section\s+"([^"]+)")?')  # may wrap over lines
+DOC_CITE = re.compile(
+    r'docs/([A-Za-z0-9_.-]+\.md)(?:[,\s(]+section\s+"([^"]+)")?'
+)  # may wrap over lines
 MD_LINK = re.compile(r"\]\(([^()\s#]+\.md)?(?:#([^()\s]+))?\)")
 
 
@@ -25,8 +38,9 @@ def _project_text_files():
         paths = [base] if base.is_file() else sorted(p for p in base.rglob("*") if p.is_file())
         for path in paths:
             rel = path.relative_to(ROOT).parts
-            if path.suffix not in SUFFIXES or any(p.startswith(".") or p == "__pycache__" or p.endswith(".egg-info")
-                                                  for p in rel):
+            if path.suffix not in SUFFIXES or any(
+                p.startswith(".") or p == "__pycache__" or p.endswith(".egg-info") for p in rel
+            ):
                 continue
             try:
                 yield path, path.read_text(encoding="utf-8")
@@ -94,8 +108,15 @@ def test_the_model_document_cites_the_code_it_describes():
         if name != "_initial_state":
             assert hasattr(kern, name), name
     for option in re.findall(r'`"([a-z-]+)"`', text):
-        assert option in {*kern.W_UPDATES, *kern.ATOM_UPDATES, *kern.NOISE_MODELS, *PREDICTIONS, "uniform",
-                              "likelihood", "pooled"}, option
+        assert option in {
+            *kern.W_UPDATES,
+            *kern.ATOM_UPDATES,
+            *kern.NOISE_MODELS,
+            *PREDICTIONS,
+            "uniform",
+            "likelihood",
+            "pooled",
+        }, option
 
 
 @pytest.mark.parametrize("script", ["setup", "study"])
@@ -109,21 +130,35 @@ def test_bin_scripts_stop_early_in_a_clone_path_with_white_space(tmp_path, scrip
     for name in ("setup", "study"):
         shutil.copy2(ROOT / "bin" / name, clone / "bin" / name)
     env = dict(os.environ, BSRBENCH_NO_APT="1")
-    proc = subprocess.run(["bash", str(clone / "bin" / script)], capture_output=True, text=True, env=env, timeout=60)
+    proc = subprocess.run(
+        ["bash", str(clone / "bin" / script)], capture_output=True, text=True, env=env, timeout=60
+    )
     assert proc.returncode == 1, proc.stderr
-    assert re.search(rf"\[{script}\] the path of this clone, '{re.escape(str(clone))}', contains white space; "
-                     r"Snakemake would run .* unquoted .*snakemake/snakemake#2645.*Clone or move bsrbench to a path "
-                     r"without white space", proc.stderr), proc.stderr
+    assert re.search(
+        rf"\[{script}\] the path of this clone, '{re.escape(str(clone))}', contains white space; "
+        r"Snakemake would run .* unquoted .*snakemake/snakemake#2645.*Clone or move bsrbench to a path "
+        r"without white space",
+        proc.stderr,
+    ), proc.stderr
     assert sorted(p.name for p in clone.iterdir()) == ["bin"]  # no .venv, nothing else
 
 
 @pytest.mark.parametrize(
     "args, dry",
     [
-        (["-n"], True), (["--dry-run"], True), (["--dryrun"], True), (["-np"], True), (["-pn"], True),
-        (["--configfile", "config/paper.yaml", "-n"], True), (["--cores", "2", "-Fn"], True),
-        ([], False), (["-p"], False), (["--configfile", "config/paper.yaml"], False), (["--notemp"], False),
-        (["--nolock", "--config", "n_train=[30]"], False), (["-j2"], False),
+        (["-n"], True),
+        (["--dry-run"], True),
+        (["--dryrun"], True),
+        (["-np"], True),
+        (["-pn"], True),
+        (["--configfile", "config/paper.yaml", "-n"], True),
+        (["--cores", "2", "-Fn"], True),
+        ([], False),
+        (["-p"], False),
+        (["--configfile", "config/paper.yaml"], False),
+        (["--notemp"], False),
+        (["--nolock", "--config", "n_train=[30]"], False),
+        (["-j2"], False),
     ],
 )
 def test_bin_study_dry_run_writes_no_report(args, dry):
@@ -131,8 +166,13 @@ def test_bin_study_dry_run_writes_no_report(args, dry):
     stops after the dry run when its arguments ask for one (-n, --dry-run, --dryrun, -n in combined short flags);
     BSRBENCH_STUDY_PLAN=1 makes it print that decision (made by the same shell function) and exit."""
     env = dict(os.environ, BSRBENCH_STUDY_PLAN="1")
-    proc = subprocess.run(["bash", str(ROOT / "bin" / "study"), *args], capture_output=True, text=True, env=env,
-                          timeout=60)
+    proc = subprocess.run(
+        ["bash", str(ROOT / "bin" / "study"), *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("dry run:" if dry else "run:"), proc.stdout
     assert ("no reports" in proc.stdout) == dry
@@ -144,14 +184,34 @@ def test_bench_bsr_ab_help_and_a_malformed_size():
     default, and a malformed cell is argparse's one-line error."""
     script = ROOT / "benchmarks" / "bench_bsr_ab.py"
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    help_ = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, env=env,
-                           timeout=300)
+    help_ = subprocess.run(
+        [sys.executable, str(script), "--help"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert help_.returncode == 0, help_.stderr
-    assert "its own Generator with the same seed" in help_.stdout  # a line from the middle of the docstring
-    for option, default in [("--sizes", "30x64 30x128"), ("--w-update", "ess"), ("--atom-update", "block"),
-                            ("--batches", "15"), ("--per-batch", "10")]:
-        assert re.search(rf"{option}.*?\(default:\s+{default}", help_.stdout, re.S), (option, help_.stdout)
-    bad = subprocess.run([sys.executable, str(script), "HEAD", "--sizes", "30-64"], capture_output=True, text=True,
-                         env=env, timeout=300)
+    assert (
+        "its own Generator with the same seed" in help_.stdout
+    )  # a line from the middle of the docstring
+    for option, default in [
+        ("--sizes", "30x64 30x128"),
+        ("--w-update", "ess"),
+        ("--atom-update", "block"),
+        ("--batches", "15"),
+        ("--per-batch", "10"),
+    ]:
+        assert re.search(rf"{option}.*?\(default:\s+{default}", help_.stdout, re.S), (
+            option,
+            help_.stdout,
+        )
+    bad = subprocess.run(
+        [sys.executable, str(script), "HEAD", "--sizes", "30-64"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr, bad.stderr
     assert "error: argument --sizes: '30-64': expected NxK, e.g. 30x64" in bad.stderr, bad.stderr

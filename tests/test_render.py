@@ -49,7 +49,12 @@ def t_pose():
 def extent(mask):
     rows = np.flatnonzero(mask.any(axis=1))
     cols = np.flatnonzero(mask.any(axis=0))
-    return rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1, (rows[0] + rows[-1] + 1) / 2, (cols[0] + cols[-1] + 1) / 2
+    return (
+        rows[-1] - rows[0] + 1,
+        cols[-1] - cols[0] + 1,
+        (rows[0] + rows[-1] + 1) / 2,
+        (cols[0] + cols[-1] + 1) / 2,
+    )
 
 
 def radius_of(body, part):
@@ -95,7 +100,9 @@ def test_t_pose_extent_matches_geometry():
     assert abs(row_c - size[0] / 2) <= 1 and abs(col_c - size[1] / 2) <= 1
     assert max(h_px / size[0], w_px / size[1]) > 0.75
     # Nothing touches the border.
-    assert not (masks[0, 0].any() or masks[0, -1].any() or masks[0, :, 0].any() or masks[0, :, -1].any())
+    assert not (
+        masks[0, 0].any() or masks[0, -1].any() or masks[0, :, 0].any() or masks[0, :, -1].any()
+    )
 
 
 def test_scale_from_first_frame_stature_and_unit_invariance():
@@ -115,7 +122,9 @@ def test_scale_from_first_frame_stature_and_unit_invariance():
     assert reach[0, names.index("lHand_End"), 1] > pos[0, names.index("head_End"), 1] + 20
     assert fit_camera(np.concatenate([reach] * 3), parents, names)[0].stature == body.stature
     a = render_silhouettes(pos, parents, names)
-    b = render_silhouettes(pos * 0.0254 + 7.0, parents, names)  # other units and origin: same picture
+    b = render_silhouettes(
+        pos * 0.0254 + 7.0, parents, names
+    )  # other units and origin: same picture
     assert np.mean(a != b) < 0.002
 
 
@@ -171,9 +180,13 @@ def test_azimuth_90_turns_width_into_depth():
     pos, parents, names = t_pose()
     size = (160, 160)
     front = render_silhouettes(pos, parents, names, image_size=size, body_scale=STATURE)[0]
-    side = render_silhouettes(pos, parents, names, image_size=size, body_scale=STATURE, view_azimuth_deg=90.0)[0]
+    side = render_silhouettes(
+        pos, parents, names, image_size=size, body_scale=STATURE, view_azimuth_deg=90.0
+    )[0]
     body, cam_front = fit_camera(pos, parents, names, image_size=size, body_scale=STATURE)
-    _, cam_side = fit_camera(pos, parents, names, image_size=size, body_scale=STATURE, view_azimuth_deg=90.0)
+    _, cam_side = fit_camera(
+        pos, parents, names, image_size=size, body_scale=STATURE, view_azimuth_deg=90.0
+    )
     _, w_front, _, _ = extent(front)
     h_side, w_side, _, _ = extent(side)
     depth = world_extent(body, pos, axis=2)
@@ -213,7 +226,11 @@ def test_projected_interior_points_are_covered():
     pos, parents, names = t_pose()
     lean = rot("z", 30) @ rot("x", -15)
     root = pos[0, 0]
-    upper = [k for k, n in enumerate(names) if not any(t in n for t in ("Buttock", "Thigh", "Shin", "Foot", "hip"))]
+    upper = [
+        k
+        for k, n in enumerate(names)
+        if not any(t in n for t in ("Buttock", "Thigh", "Shin", "Foot", "hip"))
+    ]
     pose = pos.copy()
     pose[0, upper] = root + (pos[0, upper] - root) @ lean.T
     kw = dict(image_size=(96, 80), view_azimuth_deg=-25.0, view_elevation_deg=20.0)
@@ -228,7 +245,11 @@ def test_projected_interior_points_are_covered():
             continue
         t = rng.uniform(size=(200, 1))
         v = rng.normal(size=(200, 3))
-        v *= (r - margin) * rng.uniform(size=(200, 1)) ** (1 / 3) / np.linalg.norm(v, axis=1, keepdims=True)
+        v *= (
+            (r - margin)
+            * rng.uniform(size=(200, 1)) ** (1 / 3)
+            / np.linalg.norm(v, axis=1, keepdims=True)
+        )
         pts.append(rel[0, a] + t * (rel[0, b] - rel[0, a]) + v)
     for e in body.ellipsoids:
         centre, axes = ellipsoid_frames(e, rel)

@@ -48,9 +48,22 @@ def _rows(errors):
     rows = []
     for (act, m), errs in errors.items():
         for seed, e in enumerate(errs):
-            rows.append({"protocol": "random", "source": "hsc", "activity": act, "paper_activity": act.capitalize(),
-                         "method": m, "n_train": 30, "seed": seed, "error": e, "params": {"a": 1},
-                         "per_angle_rms": [e, e], "cv": "none", "pose_transform": "heading"})
+            rows.append(
+                {
+                    "protocol": "random",
+                    "source": "hsc",
+                    "activity": act,
+                    "paper_activity": act.capitalize(),
+                    "method": m,
+                    "n_train": 30,
+                    "seed": seed,
+                    "error": e,
+                    "params": {"a": 1},
+                    "per_angle_rms": [e, e],
+                    "cv": "none",
+                    "pose_transform": "heading",
+                }
+            )
     return rows
 
 
@@ -71,7 +84,10 @@ def assert_std_smaller_than_the_table(text):
     """Before: the std was set {\\small ...} inside \\footnotesize tables, so it printed larger than the mean."""
     table = re.search(r"\\(" + "|".join(LATEX_SIZES) + r")\b", text).group(1)
     stds = re.findall(r"\$\\pm\$ \{\\([a-z]+) ", text)
-    assert stds and all(LATEX_SIZES.index(s) < LATEX_SIZES.index(table) for s in stds), (table, set(stds))
+    assert stds and all(LATEX_SIZES.index(s) < LATEX_SIZES.index(table) for s in stds), (
+        table,
+        set(stds),
+    )
 
 
 def test_aggregate_sorts_flattens_and_rejects_duplicates():
@@ -95,14 +111,31 @@ def test_summarize_mean_and_sample_std():
 
 
 def test_latex_table_layout_bold_paper_rows_and_missing_data():
-    df = aggregate_rows(_rows({("golf", "PM"): [8.0, 10.0], ("golf", "RVM"): [12.0, 14.0],
-                               ("golf", "NN1"): [6.0, 7.0]}))
-    text = latex_table(summarize(df), _paper(), source="hsc", table="I", methods=["RVM", "PM", "NN1"],
-                       labels=LABELS, n_train=[30], protocols=["random"],
-                       status={"Golf": "golf", "Acrobatics": {"kind": "download", "activity": "acrobatics"}})
+    df = aggregate_rows(
+        _rows(
+            {
+                ("golf", "PM"): [8.0, 10.0],
+                ("golf", "RVM"): [12.0, 14.0],
+                ("golf", "NN1"): [6.0, 7.0],
+            }
+        )
+    )
+    text = latex_table(
+        summarize(df),
+        _paper(),
+        source="hsc",
+        table="I",
+        methods=["RVM", "PM", "NN1"],
+        labels=LABELS,
+        n_train=[30],
+        protocols=["random"],
+        status={"Golf": "golf", "Acrobatics": {"kind": "download", "activity": "acrobatics"}},
+    )
     assert "toprule" in text and "multirow" not in text and "siunitx" not in text
     lines = [ln for ln in text.splitlines() if ln.endswith(r"\\")]
-    assert re.sub(r"\\makebox\[[^]]*\]\{([^}]*)\}", r"\1", lines[0]).startswith(r"Activity & Tr.\ \# & RVM & PM & 1-NN")
+    assert re.sub(r"\\makebox\[[^]]*\]\{([^}]*)\}", r"\1", lines[0]).startswith(
+        r"Activity & Tr.\ \# & RVM & PM & 1-NN"
+    )
     golf = [ln for ln in lines if ln.startswith("Golf & 30")]
     assert len(golf) == 1
     cells = golf[0][:-2].split(" & ")
@@ -111,20 +144,40 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
     assert cells[4].startswith(r"\textbf{6.50}")  # the reference is best here: bold, PM not
     assert not cells[3].startswith(r"\textbf")
     paper = lines[lines.index(golf[0]) + 1]
-    assert paper.startswith(r"\emph{\quad paper}") and r"\textbf{8.24}" in paper and "14.51" in paper
+    assert (
+        paper.startswith(r"\emph{\quad paper}") and r"\textbf{8.24}" in paper and "14.51" in paper
+    )
     acro = [ln for ln in lines if ln.startswith("Acrobatics")]
-    assert len(acro) == 1 and "multicolumn{4}" in acro[0] and "data not on this machine; see the note" in acro[0]
+    assert (
+        len(acro) == 1
+        and "multicolumn{4}" in acro[0]
+        and "data not on this machine; see the note" in acro[0]
+    )
     assert any(ln.startswith("Navigate &") and "no data set of this source" in ln for ln in lines)
     # every one of the paper's Table I activities has a row
-    assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == ["Acrobatics", "Navigate", "Golf"]
+    assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == [
+        "Acrobatics",
+        "Navigate",
+        "Golf",
+    ]
 
 
 def test_latex_table_notes_skipped_sizes_and_states_the_frames():
     df = aggregate_rows(_rows({("golf", "PM"): [8.0, 10.0], ("golf", "NN1"): [6.0, 7.0]}))
     note = "N = 200 skipped: the 167 frames leave at most 0 test frames, fewer than min_test = 100"
-    text = latex_table(summarize(df), _paper(), source="hsc", table="I", methods=["PM", "NN1"], labels=LABELS,
-                       n_train=[30, 200], protocols=["random"], status={"Golf": "golf"},
-                       skipped={"random": {"golf": [note]}}, frames={"golf": "one frame in 4, first 600 frames"})
+    text = latex_table(
+        summarize(df),
+        _paper(),
+        source="hsc",
+        table="I",
+        methods=["PM", "NN1"],
+        labels=LABELS,
+        n_train=[30, 200],
+        protocols=["random"],
+        status={"Golf": "golf"},
+        skipped={"random": {"golf": [note]}},
+        frames={"golf": "one frame in 4, first 600 frames"},
+    )
     lines = [ln for ln in text.splitlines() if ln.endswith("\\\\")]
     golf = [ln for ln in lines if ln.startswith("Golf &")]
     assert golf[0].startswith("Golf & 30 & ") and r"$\pm$" in golf[0]
@@ -134,24 +187,39 @@ def test_latex_table_notes_skipped_sizes_and_states_the_frames():
 
 
 def test_findings_count_where_the_claim_holds():
-    df = aggregate_rows(_rows({
-        ("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("golf", "NN1"): [7.0, 7.5],
-        ("acrobatics", "PM"): [16.0, 17.0], ("acrobatics", "RVM"): [12.0, 13.0], ("acrobatics", "NN1"): [9.0, 9.5],
-    }))
+    df = aggregate_rows(
+        _rows(
+            {
+                ("golf", "PM"): [8.0, 9.0],
+                ("golf", "RVM"): [12.0, 13.0],
+                ("golf", "NN1"): [7.0, 7.5],
+                ("acrobatics", "PM"): [16.0, 17.0],
+                ("acrobatics", "RVM"): [12.0, 13.0],
+                ("acrobatics", "NN1"): [9.0, 9.5],
+            }
+        )
+    )
     text = "\n".join(findings(df, _paper(), labels=LABELS))
     plain = re.sub(r"\\mbox\{([^}]*)\}", r"\1", text)
-    assert ("At $N=30$, PM has a lower mean error than RVM for 1 of the 2 activities studied (Golf (hsc)), "
-            "but not for Acrobatics (hsc).") in plain
+    assert (
+        "At $N=30$, PM has a lower mean error than RVM for 1 of the 2 activities studied (Golf (hsc)), "
+        "but not for Acrobatics (hsc)."
+    ) in plain
     assert "a lower mean error than RVM in 1 of the 2 (activity, $N$) rows" in plain
     assert "(the references 1-NN included) in 0 of the 2 rows" in plain
     # 1-NN beats PM on both: the count says "none" and the sign is spelled out
-    assert ("PM has a lower mean error than 1-NN for none of the 2 activities studied (Acrobatics (hsc), Golf (hsc)); "
-            "PM's mean error minus 1-NN's, median over these activities, is +4.25 degrees "
-            "(PM's error is higher).") in plain
+    assert (
+        "PM has a lower mean error than 1-NN for none of the 2 activities studied (Acrobatics (hsc), Golf (hsc)); "
+        "PM's mean error minus 1-NN's, median over these activities, is +4.25 degrees "
+        "(PM's error is higher)."
+    ) in plain
     assert "on 2 of the 4 splits" in plain
     # ours / paper: PM golf 8.5/8.241, acrobatics 16.5/12.595 -> median of the two ratios, per source
     ratio = np.median([8.5 / 8.241, 16.5 / 12.595])
-    assert f"on the hsc data, RVM {np.median([12.5 / 14.514, 12.5 / 15.963]):.2f}, PM {ratio:.2f}." in plain
+    assert (
+        f"on the hsc data, RVM {np.median([12.5 / 14.514, 12.5 / 15.963]):.2f}, PM {ratio:.2f}."
+        in plain
+    )
     assert "holds" not in plain and "0 of 2 activities" not in plain
 
 
@@ -159,14 +227,34 @@ def test_the_paper_claim_is_counted_from_the_paper_table_not_asserted():
     """Before: the summary said "in the paper's Tables I and II, PM has the lowest error in every row", but the
     paper's own table has rows where SR beats PM (throw and catch football, N = 100 and 200)."""
     paper = _paper()
-    extra = pd.DataFrame([
-        {"table": "II", "activity": "Throw and catch football", "n_train": 100, "method": "SR", "mean_deg": 9.09,
-         "std_deg": 1.0},
-        {"table": "II", "activity": "Throw and catch football", "n_train": 100, "method": "PM", "mean_deg": 9.54,
-         "std_deg": 1.0},
-        {"table": "II", "activity": "Throw and catch football", "n_train": 200, "method": "PM", "mean_deg": 7.0,
-         "std_deg": 1.0},  # PM alone: not a comparison, not counted
-    ])
+    extra = pd.DataFrame(
+        [
+            {
+                "table": "II",
+                "activity": "Throw and catch football",
+                "n_train": 100,
+                "method": "SR",
+                "mean_deg": 9.09,
+                "std_deg": 1.0,
+            },
+            {
+                "table": "II",
+                "activity": "Throw and catch football",
+                "n_train": 100,
+                "method": "PM",
+                "mean_deg": 9.54,
+                "std_deg": 1.0,
+            },
+            {
+                "table": "II",
+                "activity": "Throw and catch football",
+                "n_train": 200,
+                "method": "PM",
+                "mean_deg": 7.0,
+                "std_deg": 1.0,
+            },  # PM alone: not a comparison, not counted
+        ]
+    )
     extra["key"] = extra["activity"].map(paper_key)
     paper = pd.concat([paper, extra], ignore_index=True)
     df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
@@ -186,19 +274,38 @@ def test_ratio_to_the_paper_and_coverage_are_given_per_source():
     text = "\n".join(findings(df, _paper(), labels=LABELS))
     hsc_pm, mocap_pm = 8.5 / 8.241, 8.5 / 4 / 8.241
     # methods in the configuration's order (that of the labels)
-    assert (f"on the hsc data, RVM {12.5 / 14.514:.2f}, PM {hsc_pm:.2f}; "
-            f"on the mocap data, RVM {12.5 / 4 / 14.514:.2f}, PM {mocap_pm:.2f}.") in text
+    assert (
+        f"on the hsc data, RVM {12.5 / 14.514:.2f}, PM {hsc_pm:.2f}; "
+        f"on the mocap data, RVM {12.5 / 4 / 14.514:.2f}, PM {mocap_pm:.2f}."
+    ) in text
     assert r"on the hsc data, RVM 50\%, PM 50\%; on the mocap data, RVM 90\%, PM 90\%." in text
 
 
 def test_findings_for_all_and_for_none():
-    all_ok = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0], ("acrobatics", "PM"): [1.0],
-                                   ("acrobatics", "RVM"): [2.0]}))
+    all_ok = aggregate_rows(
+        _rows(
+            {
+                ("golf", "PM"): [1.0],
+                ("golf", "RVM"): [2.0],
+                ("acrobatics", "PM"): [1.0],
+                ("acrobatics", "RVM"): [2.0],
+            }
+        )
+    )
     text = "\n".join(findings(all_ok, None, labels=LABELS))
     assert "than RVM for both activities studied" in text and "all 2" not in text
-    three = aggregate_rows(_rows({(a, m): [1.0 if m == "PM" else 2.0] for a in ("golf", "acrobatics", "navigate")
-                                  for m in ("PM", "RVM")}))
-    assert "than RVM for all 3 activities studied" in "\n".join(findings(three, None, labels=LABELS))
+    three = aggregate_rows(
+        _rows(
+            {
+                (a, m): [1.0 if m == "PM" else 2.0]
+                for a in ("golf", "acrobatics", "navigate")
+                for m in ("PM", "RVM")
+            }
+        )
+    )
+    assert "than RVM for all 3 activities studied" in "\n".join(
+        findings(three, None, labels=LABELS)
+    )
     # one activity: PM better reads "for the activity studied"; PM worse used to read the same (the sentence
     # said PM had the lower error when it had the higher one)
     better = aggregate_rows(_rows({("golf", "PM"): [1.0], ("golf", "RVM"): [2.0]}))
@@ -213,22 +320,30 @@ def test_findings_for_all_and_for_none():
 def test_findings_without_a_method_named_pm_point_to_the_variants():
     rows = _rows({("golf", "PMK8"): [8.0, 9.0], ("golf", "NN1"): [7.0, 7.5]})
     text = findings(aggregate_rows(rows), None, labels={"PMK8": "PM K=8", "NN1": "1-NN"})
-    assert text == ["No method named PM was run, so the paper's claims about it are not checked here; the PM "
-                    "variants run (PM K=8) are compared in the section ``Why PM trails the paper here''."]
+    assert text == [
+        "No method named PM was run, so the paper's claims about it are not checked here; the PM "
+        "variants run (PM K=8) are compared in the section ``Why PM trails the paper here''."
+    ]
     text = findings(aggregate_rows(_rows({("golf", "NN1"): [7.0, 7.5]})), None, labels=LABELS)
-    assert text == ["No method named PM was run, so the paper's claims about it are not checked here."]
+    assert text == [
+        "No method named PM was run, so the paper's claims about it are not checked here."
+    ]
 
 
 def test_findings_cover_every_protocol_run_and_the_section_is_never_an_empty_list(tmp_path):
     """Before: only the random and contiguous protocols had findings, so a cross-trial study got an empty
     itemize and LaTeX stopped ("perhaps a missing \\item"); the setup said CV used seed 0 when the study's
     splits start at seed 100."""
-    rows = _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("golf", "NN1"): [7.0, 7.5]})
+    rows = _rows(
+        {("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("golf", "NN1"): [7.0, 7.5]}
+    )
     for r in rows:
         r.update(protocol="cross_trial", seed=r["seed"] + 100, cv="per_size")
     df = aggregate_rows(rows)
     text = "\n".join(findings(df, None, labels=LABELS))
-    assert "Cross-trial protocol, summary" in text and "At $N=30$ (cross-trial protocol), PM" in text
+    assert (
+        "Cross-trial protocol, summary" in text and "At $N=30$ (cross-trial protocol), PM" in text
+    )
     assert "_" not in text.replace(r"\_", "")
     out = tmp_path / "body.tex"
     write_generated(out, df, None, labels=LABELS)
@@ -244,8 +359,13 @@ def test_findings_cover_every_protocol_run_and_the_section_is_never_an_empty_lis
     assert body.count(r"\item ") == 1 and "No sentence applies" in body
 
 
-DESIGN = {"protocols": ["random"], "pairs": [["hsc", "golf"]], "methods": ["PM", "RVM"], "n_train": [30],
-          "seeds": [0, 1]}
+DESIGN = {
+    "protocols": ["random"],
+    "pairs": [["hsc", "golf"]],
+    "methods": ["PM", "RVM"],
+    "n_train": [30],
+    "seeds": [0, 1],
+}
 
 
 def test_an_aggregate_of_another_configuration_is_never_reported(tmp_path):
@@ -255,19 +375,25 @@ def test_an_aggregate_of_another_configuration_is_never_reported(tmp_path):
     assert len(read_results(path, design=DESIGN)) == 4
     # a method added to the configuration (the stale-results case), a seed or a size more, an activity less
     for change, message in [
-        ({"methods": ["PM", "RVM", "GPR"]},
-         r"2 configured job\(s\) without a row.*method: the table has \['PM', 'RVM'\], the configuration \['GPR', 'PM', 'RVM'\]"),
+        (
+            {"methods": ["PM", "RVM", "GPR"]},
+            r"2 configured job\(s\) without a row.*method: the table has \['PM', 'RVM'\], the configuration \['GPR', 'PM', 'RVM'\]",
+        ),
         ({"seeds": [0, 1, 2]}, r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]"),
         ({"n_train": [60]}, r"n_train: the table has \[30\], the configuration \[60\]"),
         ({"methods": ["PM"]}, r"2 row\(s\) of jobs not configured"),
         ({"protocols": ["contiguous"]}, r"protocol: the table has \['random'\]"),
     ]:
-        with pytest.raises(DataFileError, match=re.escape(str(path)) + ".*does not match the configuration.*"
-                           + message):
+        with pytest.raises(
+            DataFileError,
+            match=re.escape(str(path)) + ".*does not match the configuration.*" + message,
+        ):
             read_results(path, design={**DESIGN, **change})
     # every value present but one job missing
     df.drop(index=0).to_csv(path, index=False)
-    with pytest.raises(DataFileError, match=r"1 configured job\(s\) without a row.*e\.g\. no row for"):
+    with pytest.raises(
+        DataFileError, match=r"1 configured job\(s\) without a row.*e\.g\. no row for"
+    ):
         read_results(path, design=DESIGN)
 
 
@@ -279,11 +405,15 @@ def test_design_changes_name_what_differs_and_the_error_says_what_to_do(tmp_path
 
     df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
     assert design_changes(df, DESIGN) == (0, 0, [])
-    assert design_changes(df[["protocol", "source", "activity", "method", "n_train", "seed"]],
-                          {**DESIGN, "n_train": [30, 60]}) == (
-        4, 0, ["n_train: the table has [30], the configuration [30, 60]"])
+    assert design_changes(
+        df[["protocol", "source", "activity", "method", "n_train", "seed"]],
+        {**DESIGN, "n_train": [30, 60]},
+    ) == (4, 0, ["n_train: the table has [30], the configuration [30, 60]"])
     assert design_changes(df, {**DESIGN, "methods": ["PM"]}) == (
-        0, 2, ["method: the table has ['PM', 'RVM'], the configuration ['PM']"])
+        0,
+        2,
+        ["method: the table has ['PM', 'RVM'], the configuration ['PM']"],
+    )
     assert study_of("results/quick/aggregate/results.csv") == "quick"
     assert study_of(tmp_path / "results.csv") is None
     path = tmp_path / "results" / "quick" / "aggregate" / "results.csv"
@@ -293,14 +423,17 @@ def test_design_changes_name_what_differs_and_the_error_says_what_to_do(tmp_path
         read_results(path, design={**DESIGN, "seeds": [0, 1, 2]})
     msg = str(err.value)
     assert "the design of study 'quick' has changed" in msg and "add --forcerun aggregate" in msg
-    assert "(--config study=NAME)" in msg and msg.endswith(f"delete results/quick/ to start afresh")
+    assert "(--config study=NAME)" in msg and msg.endswith("delete results/quick/ to start afresh")
 
 
 def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     status = {
         "Golf": "golf",
-        "Acrobatics": {"kind": "download", "activity": "acrobatics",
-                       "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz"},
+        "Acrobatics": {
+            "kind": "download",
+            "activity": "acrobatics",
+            "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz",
+        },
         "Run": {"kind": "here", "activity": "run"},
         "Navigate": {"kind": "none"},
     }
@@ -310,7 +443,9 @@ def test_missing_data_note_is_one_paragraph_per_source_with_copyable_commands():
     assert r"\texttt{snakemake -{}-{}cores 2 results/features/mocap/acrobatics.npz}" in note
     assert r"add \texttt{run} to the configuration key \texttt{study\_activities.mocap}" in note
     # activities without an entry are grouped with those of kind "none"
-    assert r"\mbox{Navigate}, \mbox{Throw and catch football}" in note and "no mocap data set" in note
+    assert (
+        r"\mbox{Navigate}, \mbox{Throw and catch football}" in note and "no mocap data set" in note
+    )
     assert "Golf" not in note
     assert missing_data_note("hsc", {pa: "x" for t in PAPER_TABLES.values() for pa in t}) == ""
 
@@ -322,16 +457,33 @@ def test_page_one_names_the_config_overrides_after_the_files():
     from bsrbench.reporting.report import build_header, config_provenance
 
     files = ["config/datasets.yaml", "config/config.yaml", "config/ci.yaml"]
-    text = config_provenance(files, ["study=ci_n", "n_train=[30,60]", "report={subjective_methods: [SR]}"])
-    assert text.startswith(r"config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply), then ")
+    text = config_provenance(
+        files, ["study=ci_n", "n_train=[30,60]", "report={subjective_methods: [SR]}"]
+    )
+    assert text.startswith(
+        r"config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply), then "
+    )
     q = r"\textquotesingle{}"
     assert text.endswith(
-        r"\texttt{\frenchspacing -{}-{}config study=ci\_n " + q + "n\\_train=[30,60]" + q + " " + q
-        + r"report=\{subjective\_methods: [SR]\}" + q + "}"
+        r"\texttt{\frenchspacing -{}-{}config study=ci\_n "
+        + q
+        + "n\\_train=[30,60]"
+        + q
+        + " "
+        + q
+        + r"report=\{subjective\_methods: [SR]\}"
+        + q
+        + "}"
     ), text
-    assert config_provenance(files, []) == config_provenance(files) == (
-        "config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply)")
-    assert config_provenance([], ["job_server=False"]) == r"none, then \texttt{\frenchspacing -{}-{}config job\_server=False}"
+    assert (
+        config_provenance(files, [])
+        == config_provenance(files)
+        == ("config/datasets.yaml, config/config.yaml, config/ci.yaml (in the order they apply)")
+    )
+    assert (
+        config_provenance([], ["job_server=False"])
+        == r"none, then \texttt{\frenchspacing -{}-{}config job\_server=False}"
+    )
     header = build_header(configfiles=files, overrides=["n_train=[30,60]"])
     row = [ln for ln in header.splitlines() if ln.startswith("Configuration & ")]
     assert len(row) == 1 and "n\\_train=[30,60]" in row[0]
@@ -344,8 +496,14 @@ def test_a_table_without_any_studied_activity_is_left_out_and_the_note_says_so(t
     from bsrbench.reporting.report import write_body
     from bsrbench.reporting.tables import tables_with_rows
 
-    walk_only = {"Walk": "walk", "Acrobatics": {"kind": "download", "activity": "acrobatics",
-                                                "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz"}}
+    walk_only = {
+        "Walk": "walk",
+        "Acrobatics": {
+            "kind": "download",
+            "activity": "acrobatics",
+            "command": "snakemake --cores 2 results/features/mocap/acrobatics.npz",
+        },
+    }
     assert tables_with_rows(walk_only) == ["II"]
     assert tables_with_rows({"Golf": "golf", "Run": "run"}) == ["I", "II"]
     assert tables_with_rows({"Run": {"kind": "here", "activity": "run"}}) == []
@@ -353,16 +511,31 @@ def test_a_table_without_any_studied_activity_is_left_out_and_the_note_says_so(t
     lines = note.split("\\\\\n")
     assert re.sub(r".*\\small\n", "", lines[0], flags=re.S) == (
         r"Table I (\mbox{Acrobatics}, \mbox{Navigate} and \mbox{Golf}) is not shown for the mocap data: this "
-        "study has none of its activities on that source, so every row would be empty.")
-    assert note.count("not shown") == 1 and r"\mbox{Acrobatics}: the data are not on this machine" in note
+        "study has none of its activities on that source, so every row would be empty."
+    )
+    assert (
+        note.count("not shown") == 1
+        and r"\mbox{Acrobatics}: the data are not on this machine" in note
+    )
     both = missing_data_note("hsc", {"Laugh": "laugh"})
-    assert "Tables I and II (" in both and "are not shown for the hsc data" in both and "their activities" in both
+    assert (
+        "Tables I and II (" in both
+        and "are not shown for the hsc data" in both
+        and "their activities" in both
+    )
     assert "not shown" not in missing_data_note("hsc", {"Golf": "golf", "Run": "run"})
     # the note of a source left without any table still reaches the report, after the tables
     body = tmp_path / "body.tex"
-    write_body(body, tables=["tables/tableI_hsc.tex"], figures=[], notes={"hsc": "HSC NOTE", "mocap": "MOCAP NOTE"})
+    write_body(
+        body,
+        tables=["tables/tableI_hsc.tex"],
+        figures=[],
+        notes={"hsc": "HSC NOTE", "mocap": "MOCAP NOTE"},
+    )
     text = body.read_text()
-    assert text.index(r"\input{tables/tableI_hsc}") < text.index("HSC NOTE") < text.index("MOCAP NOTE")
+    assert (
+        text.index(r"\input{tables/tableI_hsc}") < text.index("HSC NOTE") < text.index("MOCAP NOTE")
+    )
 
 
 def test_parameters_table_lists_configured_cv_chosen_and_default_values():
@@ -372,19 +545,28 @@ def test_parameters_table_lists_configured_cv_chosen_and_default_values():
     used = parameters_used(df, defaults={"PM": {"a": 5, "k": 3, "thin": 10, "random_state": None}})
     assert used["PM"] == ({"a": [1], "k": [64, 128]}, {"thin": 10, "random_state": "per job"})
     table = parameters_table(df, labels=LABELS, defaults={"PM": {"thin": 10}})
-    assert r"a=1, k=64|\allowbreak{}128 (CV)" in table and "thin=10" in table and "tabularx" in table
+    assert (
+        r"a=1, k=64|\allowbreak{}128 (CV)" in table and "thin=10" in table and "tabularx" in table
+    )
 
 
 def test_latex_log_problems_flags_overfull_boxes_and_undefined_references():
-    log = "\n".join([
-        r"Overfull \hbox (0.5pt too wide) in paragraph at lines 3--4",
-        r"Overfull \hbox (12.3pt too wide) in paragraph at lines 9--10",
-        r"Overfull \vbox (3.0pt too high) has occurred while \output is active",
-        r"LaTeX Warning: Reference `tab:parameters' on page 1 undefined on input line 40.",
-        r"Underfull \hbox (badness 10000) in paragraph at lines 1--2",
-    ])
+    log = "\n".join(
+        [
+            r"Overfull \hbox (0.5pt too wide) in paragraph at lines 3--4",
+            r"Overfull \hbox (12.3pt too wide) in paragraph at lines 9--10",
+            r"Overfull \vbox (3.0pt too high) has occurred while \output is active",
+            r"LaTeX Warning: Reference `tab:parameters' on page 1 undefined on input line 40.",
+            r"Underfull \hbox (badness 10000) in paragraph at lines 1--2",
+        ]
+    )
     problems = latex_log_problems(log)
-    assert len(problems) == 3 and "12.3pt" in problems[0] and "3.0pt" in problems[1] and "tab:parameters" in problems[2]
+    assert (
+        len(problems) == 3
+        and "12.3pt" in problems[0]
+        and "3.0pt" in problems[1]
+        and "tab:parameters" in problems[2]
+    )
     assert latex_log_problems("Overfull \\hbox (0.9pt too wide)") == []
 
 
@@ -392,12 +574,23 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
     """The report includes figures unscaled, so matplotlib's sizes are the printed sizes."""
     import matplotlib.pyplot as plt
 
-    from bsrbench.reporting.plots import MIN_FONT_PT, TEXT_WIDTH, plot_calibration, plot_error_vs_ntrain
+    from bsrbench.reporting.plots import (
+        MIN_FONT_PT,
+        TEXT_WIDTH,
+        plot_calibration,
+        plot_error_vs_ntrain,
+    )
 
     rows = []
     for n in (30, 100):
-        for r in _rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0], ("acrobatics", "PM"): [5.0, 6.0],
-                        ("acrobatics", "RVM"): [7.0, 7.5]}):
+        for r in _rows(
+            {
+                ("golf", "PM"): [8.0, 9.0],
+                ("golf", "RVM"): [12.0, 13.0],
+                ("acrobatics", "PM"): [5.0, 6.0],
+                ("acrobatics", "RVM"): [7.0, 7.5],
+            }
+        ):
             rows.append(dict(r, n_train=n, coverage_50=0.4, coverage_90=0.8))
     df = aggregate_rows(rows)
     figs = [
@@ -408,7 +601,11 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
         fig.canvas.draw()
         bbox = fig.get_tightbbox(fig.canvas.get_renderer())
         assert bbox.width <= TEXT_WIDTH + 0.01
-        sizes = [t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()]
+        sizes = [
+            t.get_fontsize()
+            for t in fig.findobj(plt.Text)
+            if t.get_visible() and t.get_text().strip()
+        ]
         assert sizes and min(sizes) >= MIN_FONT_PT
         ticks = [float(t.get_text()) for t in fig.axes[0].get_xticklabels() if t.get_text()]
         if ticks and fig is figs[0]:
@@ -416,7 +613,9 @@ def test_figures_fit_the_text_width_with_fonts_of_at_least_7_pt():
         plt.close(fig)
 
 
-@pytest.mark.parametrize("protocols, shown", [(("contiguous",), "contiguous"), (("contiguous", "random"), "random")])
+@pytest.mark.parametrize(
+    "protocols, shown", [(("contiguous",), "contiguous"), (("contiguous", "random"), "random")]
+)
 def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown):
     """A study without the random protocol (the ablation) still gets its calibration curves, titled by protocol."""
     import matplotlib.pyplot as plt
@@ -432,13 +631,17 @@ def test_calibration_uses_the_random_protocol_else_the_one_run(protocols, shown)
     ax = fig.axes[0]
     lines = [ln for ln in ax.get_lines() if ln.get_label() == LABELS["PM"]]
     assert len(lines) == 1
-    np.testing.assert_allclose(lines[0].get_ydata(), [0.4, 0.8] if shown == "random" else [0.2, 0.4])
+    np.testing.assert_allclose(
+        lines[0].get_ydata(), [0.4, 0.8] if shown == "random" else [0.2, 0.4]
+    )
     assert ax.get_title() == ("N = 30" if shown == "random" else "N = 30 (contiguous)")
     assert not [t for t in ax.texts if "no method" in t.get_text()]
     plt.close(fig)
 
 
-@pytest.mark.parametrize("protocols", [("contiguous",), ("random",), ("random", "contiguous"), ("cross_trial",)])
+@pytest.mark.parametrize(
+    "protocols", [("contiguous",), ("random",), ("random", "contiguous"), ("cross_trial",)]
+)
 def test_error_figure_legend_names_only_the_protocols_run(protocols):
     """Before: the legend always had "this study (random)", also for a contiguous-only study; a cross-trial
     study's Fig. 1 drew no line at all."""
@@ -447,13 +650,24 @@ def test_error_figure_legend_names_only_the_protocols_run(protocols):
     from bsrbench.reporting.plots import plot_error_vs_ntrain
 
     rows = [dict(r, protocol=p) for p in protocols for r in _rows({("golf", "PM"): [8.0, 9.0]})]
-    fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS)
+    fig = plot_error_vs_ntrain(
+        aggregate_rows(rows), _paper(), source="hsc", methods=["PM"], labels=LABELS
+    )
     names = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
-    expected = [f"this study ({p.replace('_', '-')})" for p in ("random", "contiguous", "cross_trial") if p in protocols]
+    expected = [
+        f"this study ({p.replace('_', '-')})"
+        for p in ("random", "contiguous", "cross_trial")
+        if p in protocols
+    ]
     assert [n for n in names if n.startswith("this study")] == expected
     assert "PM" in names and "the paper" in names
-    styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {":", "None"}  # the paper dotted; caps
-    assert styles == {{"random": "-", "contiguous": "--", "cross_trial": "-."}[p] for p in protocols}
+    styles = {ln.get_linestyle() for ln in fig.axes[0].get_lines()} - {
+        ":",
+        "None",
+    }  # the paper dotted; caps
+    assert styles == {
+        {"random": "-", "contiguous": "--", "cross_trial": "-."}[p] for p in protocols
+    }
     plt.close(fig)
 
 
@@ -466,10 +680,17 @@ def test_error_figure_draws_the_paper_only_where_this_study_has_a_point():
 
     from bsrbench.reporting.plots import paper_points_not_drawn, plot_error_vs_ntrain
 
-    paper = pd.read_csv(io.StringIO(PAPER_CSV + "I,Golf,100,PM,5.0,1.0\nI,Acrobatics,100,PM,9.0,1.0\n"))
+    paper = pd.read_csv(
+        io.StringIO(PAPER_CSV + "I,Golf,100,PM,5.0,1.0\nI,Acrobatics,100,PM,9.0,1.0\n")
+    )
     paper["key"] = paper["activity"].map(paper_key)
-    rows = [dict(r, n_train=30) for r in _rows({("golf", "PM"): [8.0, 9.0], ("acrobatics", "PM"): [12.0, 13.0]})]
-    rows += [dict(r, n_train=100) for r in _rows({("golf", "PM"): [6.0, 7.0]})]  # acrobatics: N = 100 skipped
+    rows = [
+        dict(r, n_train=30)
+        for r in _rows({("golf", "PM"): [8.0, 9.0], ("acrobatics", "PM"): [12.0, 13.0]})
+    ]
+    rows += [
+        dict(r, n_train=100) for r in _rows({("golf", "PM"): [6.0, 7.0]})
+    ]  # acrobatics: N = 100 skipped
     df = aggregate_rows(rows)
     kw = dict(source="hsc", methods=["PM"], labels=LABELS, n_train=[30, 100])
     fig = plot_error_vs_ntrain(df, paper, **kw)
@@ -494,9 +715,13 @@ def _error_axis_labels(lo, hi):
 
     rows = []
     for n, err in ((30, hi), (100, lo)):
-        for r in _rows({("golf", "PM"): [err, err * 0.98], ("golf", "RVM"): [err * 0.99, err * 0.97]}):
+        for r in _rows(
+            {("golf", "PM"): [err, err * 0.98], ("golf", "RVM"): [err * 0.99, err * 0.97]}
+        ):
             rows.append(dict(r, n_train=n))
-    fig = plot_error_vs_ntrain(aggregate_rows(rows), _paper()[:0], source="hsc", methods=["PM", "RVM"], labels=LABELS)
+    fig = plot_error_vs_ntrain(
+        aggregate_rows(rows), _paper()[:0], source="hsc", methods=["PM", "RVM"], labels=LABELS
+    )
     fig.canvas.draw()
     ax = fig.axes[0]
     y0, y1 = ax.get_ylim()
@@ -511,7 +736,9 @@ def _error_axis_labels(lo, hi):
     return (y0, y1), labels
 
 
-@pytest.mark.parametrize("lo, hi", [(3.0, 25.0), (7.0, 18.0), (4.0, 17.0), (1.6, 17.0), (11.0, 60.0), (9.6, 10.4)])
+@pytest.mark.parametrize(
+    "lo, hi", [(3.0, 25.0), (7.0, 18.0), (4.0, 17.0), (1.6, 17.0), (11.0, 60.0), (9.6, 10.4)]
+)
 def test_error_axis_is_labelled_across_its_whole_range(lo, hi):
     """Before: labels only at 1, 2, 3, 5 (or every integer) times a power of ten, so an axis from 7 to 18
     degrees was labelled 7, 8, 9, 10 and nothing above 10. Now every 10^k and 2, 3, 5 x 10^k of a range over a
@@ -544,8 +771,15 @@ def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
     y_true = rng.uniform(-40, 40, 57)
     y_pred = y_true + rng.normal(0, 5, 57)
     true, parents = hsc_stick_figure(y_true)
-    pnl = {"label": "Golf", "frame": 7, "x": rng.random(100), "parents": parents, "true": true,
-           "preds": {"PM": hsc_stick_figure(y_pred)[0]}, "errors": {"PM": 4.2}}
+    pnl = {
+        "label": "Golf",
+        "frame": 7,
+        "x": rng.random(100),
+        "parents": parents,
+        "true": true,
+        "preds": {"PM": hsc_stick_figure(y_pred)[0]},
+        "errors": {"PM": 4.2},
+    }
     fig = plot_subjective_sticks([pnl], labels=LABELS)
     hist, true_ax, pred_ax = fig.axes[:3]
     bars = [c for c in hist.containers if isinstance(c, BarContainer)]
@@ -558,7 +792,9 @@ def test_hsc_stick_figures_show_the_input_histogram_and_the_authors_skeleton():
     assert true_ax.get_xlim() == pred_ax.get_xlim()
     fig.canvas.draw()
     assert fig.get_tightbbox(fig.canvas.get_renderer()).width <= TEXT_WIDTH + 0.01
-    sizes = [t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()]
+    sizes = [
+        t.get_fontsize() for t in fig.findobj(plt.Text) if t.get_visible() and t.get_text().strip()
+    ]
     assert min(sizes) >= MIN_FONT_PT
     plt.close(fig)
 
@@ -574,9 +810,15 @@ def test_stick_figure_titles_of_long_method_labels_stay_over_their_panel():
     true, parents = hsc_stick_figure(rng.uniform(-40, 40, 57))
     methods = ["PMK8", "PMK16s5000text", "NN1"]
     labels = {"PMK8": "PM K=8", "PMK16s5000text": "PM K=16 5000 sw. text pred.", "NN1": "1-NN"}
-    pnl = {"label": "Golf", "frame": 7, "x": rng.random(100), "parents": parents, "true": true,
-           "preds": {m: hsc_stick_figure(rng.uniform(-40, 40, 57))[0] for m in methods},
-           "errors": {m: 7.6 for m in methods}}
+    pnl = {
+        "label": "Golf",
+        "frame": 7,
+        "x": rng.random(100),
+        "parents": parents,
+        "true": true,
+        "preds": {m: hsc_stick_figure(rng.uniform(-40, 40, 57))[0] for m in methods},
+        "errors": {m: 7.6 for m in methods},
+    }
     fig = plot_subjective_sticks([pnl], labels=labels)
     fig.canvas.draw()
     r = fig.canvas.get_renderer()
@@ -592,13 +834,32 @@ def test_stick_figure_titles_of_long_method_labels_stay_over_their_panel():
     "damage, message",
     [
         (lambda df: pd.concat([df, df.iloc[[1]]]), r"row 6, column 'seed'.*appears twice"),
-        (lambda df: df.assign(error=df["error"].where(df.index != 2)), r"row 4, column 'error': nan; expected a finite"),
-        (lambda df: df.assign(error=df["error"].where(df.index != 0, -5.0)), r"row 2, column 'error': -5.0"),
-        (lambda df: df.assign(error=df["error"].astype(object).where(df.index != 0, "abc")), r"'abc'; expected a finite"),
-        (lambda df: df.assign(n_train=df["n_train"].astype(object).where(df.index != 3, "thirty")),
-         r"row 5, column 'n_train': 'thirty'; expected a whole number"),
-        (lambda df: df.assign(seed=df["seed"].where(df.index != 1, 1.5)), r"row 3, column 'seed': 1.5"),
-        (lambda df: df.drop(index=3), r"cell \{.*'activity': 'golf'.*\} has seeds \[0\]; expected all of \[0, 1\]"),
+        (
+            lambda df: df.assign(error=df["error"].where(df.index != 2)),
+            r"row 4, column 'error': nan; expected a finite",
+        ),
+        (
+            lambda df: df.assign(error=df["error"].where(df.index != 0, -5.0)),
+            r"row 2, column 'error': -5.0",
+        ),
+        (
+            lambda df: df.assign(error=df["error"].astype(object).where(df.index != 0, "abc")),
+            r"'abc'; expected a finite",
+        ),
+        (
+            lambda df: df.assign(
+                n_train=df["n_train"].astype(object).where(df.index != 3, "thirty")
+            ),
+            r"row 5, column 'n_train': 'thirty'; expected a whole number",
+        ),
+        (
+            lambda df: df.assign(seed=df["seed"].where(df.index != 1, 1.5)),
+            r"row 3, column 'seed': 1.5",
+        ),
+        (
+            lambda df: df.drop(index=3),
+            r"cell \{.*'activity': 'golf'.*\} has seeds \[0\]; expected all of \[0, 1\]",
+        ),
     ],
 )
 def test_a_damaged_aggregate_table_is_never_summarised(tmp_path, damage, message):
@@ -620,10 +881,16 @@ PAPER_TABLES_CSV = Path(__file__).resolve().parents[1] / "resources" / "paper-ta
 def _files(tmp_path):
     """Missing and garbled inputs: {name: path}."""
     out = {"missing": tmp_path / "nope" / "file.csv", "folder": tmp_path}
-    for name, data in {"binary": b"\x00\xff\xfe garbage", "empty": b"", "cols": b"a,b\n1,2\n"}.items():
+    for name, data in {
+        "binary": b"\x00\xff\xfe garbage",
+        "empty": b"",
+        "cols": b"a,b\n1,2\n",
+    }.items():
         out[name] = tmp_path / f"{name}.csv"
         out[name].write_bytes(data)
-    bad = PAPER_TABLES_CSV.read_text().replace("I,Acrobatics,30,RVM,15.963", "I,Acrobatics,30,RVM,abc", 1)
+    bad = PAPER_TABLES_CSV.read_text().replace(
+        "I,Acrobatics,30,RVM,15.963", "I,Acrobatics,30,RVM,abc", 1
+    )
     out["paper-value"] = tmp_path / "paper-value.csv"
     out["paper-value"].write_text(bad)
     return out
@@ -632,29 +899,70 @@ def _files(tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["readme", "{published}", "--update", "{missing}"],
-         r"nope/file\.csv: cannot read the file to update \(No such file or directory\); expected an existing UTF-8"),
-        (["readme", "{published}", "--update", "{folder}"], r"cannot read the file to update \(Is a directory\)"),
-        (["readme", "{published}", "--update", "{binary}"], r"binary\.csv: cannot read the file to update \('utf-8'"),
-        (["readme", "{published}", "--update", "{cols}"], r"cols\.csv: no markers '<!-- results-table:hsc -->'"),
+        (
+            ["readme", "{published}", "--update", "{missing}"],
+            r"nope/file\.csv: cannot read the file to update \(No such file or directory\); expected an existing UTF-8",
+        ),
+        (
+            ["readme", "{published}", "--update", "{folder}"],
+            r"cannot read the file to update \(Is a directory\)",
+        ),
+        (
+            ["readme", "{published}", "--update", "{binary}"],
+            r"binary\.csv: cannot read the file to update \('utf-8'",
+        ),
+        (
+            ["readme", "{published}", "--update", "{cols}"],
+            r"cols\.csv: no markers '<!-- results-table:hsc -->'",
+        ),
         (["readme", "{missing}"], r"file\.csv: cannot read the aggregate table"),
         (["readme", "{binary}"], r"binary\.csv: cannot read the aggregate table \('utf-8' codec"),
         (["readme", "{empty}"], r"empty\.csv: cannot read the aggregate table \(No columns"),
         (["readme", "{cols}"], r"cols\.csv: missing columns \['protocol'"),
-        (["readme", "{published}", "--paper", "{binary}"], r"binary\.csv: cannot read the paper's tables"),
-        (["readme", "{published}", "--paper", "{empty}"], r"empty\.csv: cannot read the paper's tables"),
-        (["readme", "{published}", "--paper", "{paper-value}"],
-         r"paper-value\.csv: row 2, column 'mean_deg': 'abc'; expected a finite number >= 0"),
+        (
+            ["readme", "{published}", "--paper", "{binary}"],
+            r"binary\.csv: cannot read the paper's tables",
+        ),
+        (
+            ["readme", "{published}", "--paper", "{empty}"],
+            r"empty\.csv: cannot read the paper's tables",
+        ),
+        (
+            ["readme", "{published}", "--paper", "{paper-value}"],
+            r"paper-value\.csv: row 2, column 'mean_deg': 'abc'; expected a finite number >= 0",
+        ),
         (["readme", "{published}", "--protocol", "sideways"], r"no rows of protocol 'sideways'"),
-        (["publish", "--study", "out", "{binary}", "{tmp}/out.csv"], r"binary\.csv: cannot read the aggregate table"),
-        (["publish", "{published}", "{binary}/out.csv"], r"binary\.csv/out\.csv: cannot write the published table"),
-        (["publish", "{published}", "{tmp}/nope/out.csv"],
-         r"nope/out\.csv: cannot write the published table: its folder '.*/nope' does not exist; expected the path "
-         r"of a table in an existing folder"),
+        (
+            ["publish", "--study", "out", "{binary}", "{tmp}/out.csv"],
+            r"binary\.csv: cannot read the aggregate table",
+        ),
+        (
+            ["publish", "{published}", "{binary}/out.csv"],
+            r"binary\.csv/out\.csv: cannot write the published table",
+        ),
+        (
+            ["publish", "{published}", "{tmp}/nope/out.csv"],
+            r"nope/out\.csv: cannot write the published table: its folder '.*/nope' does not exist; expected the path "
+            r"of a table in an existing folder",
+        ),
     ],
-    ids=["update-missing", "update-folder", "update-binary", "update-no-markers", "table-missing", "table-binary",
-         "table-empty", "table-columns", "paper-binary", "paper-empty", "paper-value", "protocol", "publish-binary",
-         "publish-unwritable", "publish-missing-folder"],
+    ids=[
+        "update-missing",
+        "update-folder",
+        "update-binary",
+        "update-no-markers",
+        "table-missing",
+        "table-binary",
+        "table-empty",
+        "table-columns",
+        "paper-binary",
+        "paper-empty",
+        "paper-value",
+        "protocol",
+        "publish-binary",
+        "publish-unwritable",
+        "publish-missing-folder",
+    ],
 )
 def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsys, args, message):
     """Before: `readme ... --update MISSING` (and a binary table, an empty or non-numeric paper table, an
@@ -670,7 +978,9 @@ def test_published_cli_missing_or_garbled_input_is_a_clear_error(tmp_path, capsy
     assert err.startswith("error: ") and err.count("\n") == 1, err
     assert re.search(message, err), err
     assert {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
-    assert not (tmp_path / "nope").exists()  # publish to a missing folder creates nothing (it used to create it)
+    assert not (
+        tmp_path / "nope"
+    ).exists()  # publish to a missing folder creates nothing (it used to create it)
 
 
 def test_publish_refuses_another_studys_table(tmp_path, capsys):
@@ -696,14 +1006,28 @@ def test_publish_refuses_another_studys_table(tmp_path, capsys):
         assert dest.read_text() == "the committed paper table\n"
         assert not dest.with_name("quick.csv").exists()
 
-    fails(["publish", src, dest], "study 'quick'", "is study 'paper'",
-          f"The right command: python -m bsrbench.reporting.published publish {src} {dest.with_name('quick.csv')}")
-    fails(["publish", "--study", "paper", src, dest], "--study 'paper' contradicts", "study 'quick'")
+    fails(
+        ["publish", src, dest],
+        "study 'quick'",
+        "is study 'paper'",
+        f"The right command: python -m bsrbench.reporting.published publish {src} {dest.with_name('quick.csv')}",
+    )
+    fails(
+        ["publish", "--study", "paper", src, dest], "--study 'paper' contradicts", "study 'quick'"
+    )
     outside = tmp_path / "elsewhere.csv"
     outside.write_bytes(PUBLISHED.read_bytes())
     fails(["publish", outside, dest], "cannot tell the study", "--study NAME")
-    fails(["publish", "--study", "quick", outside, dest], "is study 'paper'", f"--study quick {outside}")
+    fails(
+        ["publish", "--study", "quick", outside, dest],
+        "is study 'paper'",
+        f"--study quick {outside}",
+    )
 
     assert main(["publish", str(src), str(dest.with_name("quick.csv"))]) == 0
     assert main(["publish", "--study", "paper", str(outside), str(dest)]) == 0
-    assert dest.read_bytes() == dest.with_name("quick.csv").read_bytes() != b"the committed paper table\n"
+    assert (
+        dest.read_bytes()
+        == dest.with_name("quick.csv").read_bytes()
+        != b"the committed paper table\n"
+    )

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
 from joblib import parallel_config
 from sklearn.model_selection import KFold
+from threadpoolctl import threadpool_limits
 
 from bsrbench.errors import InputError
 from bsrbench.metrics import mean_angle_error
@@ -13,13 +13,13 @@ from bsrbench.poses import HeadingTransform
 from bsrbench.tuning import TuneResult, tune
 
 
-
 @pytest.fixture(autouse=True)
 def _one_blas_thread():
     """One BLAS thread: the small matrices here gain nothing from threads, and on a loaded machine
     oversubscribed BLAS threads make them many times slower."""
     with threadpool_limits(1):
         yield
+
 
 class CountingNN(NearestNeighbourRegressor):
     """k-NN that counts its fits (class-level counter, survives clone)."""
@@ -63,7 +63,9 @@ def test_tune_selects_ridge_penalty_on_noisy_linear_data():
     X = rng.normal(size=(80, 30))
     Y = X[:, :2] @ np.array([[5.0, -3.0], [2.0, 4.0]]) + 3.0 * rng.standard_normal((80, 2))
     res = tune(RidgeRegressor(), {"alpha": [1e-6, 10.0, 1e6]}, X, Y, cv=5)
-    assert res.best_params == {"alpha": 10.0}  # neither no penalty (30 noisy features) nor a constant
+    assert res.best_params == {
+        "alpha": 10.0
+    }  # neither no penalty (30 noisy features) nor a constant
 
 
 def test_predict_time_grid_equals_refit_grid_with_fewer_fits():
@@ -75,7 +77,9 @@ def test_predict_time_grid_equals_refit_grid_with_fewer_fits():
     slow = tune(CountingNNRefit(), grid, X, Y, cv=3, random_state=7)
     assert CountingNN.n_fit_calls == fast.n_fits == 3 * 2  # one fit per fold per weights value
     assert CountingNNRefit.n_fit_calls == slow.n_fits == 3 * 8  # one fit per fold per grid point
-    np.testing.assert_allclose(fast.cv_results["mean_error"], slow.cv_results["mean_error"], rtol=1e-12)
+    np.testing.assert_allclose(
+        fast.cv_results["mean_error"], slow.cv_results["mean_error"], rtol=1e-12
+    )
     assert fast.best_params == slow.best_params
     assert list(fast.cv_results["params"]) == list(slow.cv_results["params"])
 
@@ -98,7 +102,9 @@ def test_scores_in_original_pose_space_with_transform():
 def test_parallel_jobs_give_the_same_result():
     X, Y = _curve(40, 4)
     a = tune(NearestNeighbourRegressor(), {"n_neighbors": [1, 2, 3]}, X, Y, cv=3, n_jobs=1)
-    with parallel_config(backend="threading"):  # the parallel code path without process start-up cost
+    with parallel_config(
+        backend="threading"
+    ):  # the parallel code path without process start-up cost
         b = tune(NearestNeighbourRegressor(), {"n_neighbors": [1, 2, 3]}, X, Y, cv=3, n_jobs=2)
     np.testing.assert_allclose(a.cv_results["mean_error"], b.cv_results["mean_error"])
 
@@ -116,7 +122,9 @@ def test_errors_are_clear():
         tune(NearestNeighbourRegressor(), [], X, Y)
     with pytest.raises(InputError, match=r"param_grid\['n_neighbors'\] is an empty list"):
         tune(NearestNeighbourRegressor(), {"n_neighbors": []}, X, Y)
-    with pytest.raises(InputError, match=r"param_grid\['weights'\] must be a list of values; got 'uniform'"):
+    with pytest.raises(
+        InputError, match=r"param_grid\['weights'\] must be a list of values; got 'uniform'"
+    ):
         tune(NearestNeighbourRegressor(), {"weights": "uniform"}, X, Y)
     with pytest.raises(InputError, match=r"cv must be an integer >= 2 .*; got 1"):
         tune(NearestNeighbourRegressor(), {"n_neighbors": [1]}, X, Y, cv=1)

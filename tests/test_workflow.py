@@ -14,17 +14,36 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
-STUDY_RULES = {"cv", "fit", "aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration",
-               "plot_trace", "plot_subjective", "report_pdf", "all"}
+STUDY_RULES = {
+    "cv",
+    "fit",
+    "aggregate",
+    "table",
+    "report_text",
+    "plot_error_vs_ntrain",
+    "plot_calibration",
+    "plot_trace",
+    "plot_subjective",
+    "report_pdf",
+    "all",
+}
 PAPER_TABLE_ROWS = {
     "I": ["Acrobatics", "Navigate", "Golf"],
-    "II": ["Throw and catch football", "Michael jackson styled motions", "Kick soccer ball", "Run", "Walk"],
+    "II": [
+        "Throw and catch football",
+        "Michael jackson styled motions",
+        "Kick soccer ball",
+        "Run",
+        "Walk",
+    ],
 }
 
 
 def smk(*args, cwd=ROOT, timeout=600):
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
-    return subprocess.run([SNAKEMAKE, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env)
+    return subprocess.run(
+        [SNAKEMAKE, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env
+    )
 
 
 def test_lint_is_clean():
@@ -56,31 +75,64 @@ def test_dry_run(args):
 @pytest.mark.parametrize(
     "override, message",
     [
-        ("study_activities: {hsc: [juggling]}", r"study_activities\.hsc.*unknown activity 'juggling'"),
-        ("study_activities: {nosource: [golf]}", r"study_activities.*unknown data source 'nosource'"),
+        (
+            "study_activities: {hsc: [juggling]}",
+            r"study_activities\.hsc.*unknown activity 'juggling'",
+        ),
+        (
+            "study_activities: {nosource: [golf]}",
+            r"study_activities.*unknown data source 'nosource'",
+        ),
         ("run: [PM, XGB]", r"'run': unknown method 'XGB'"),
         ("n_train: [30, 550]", r"'n_train': 550 is too large for hsc/acrobatics"),
-        ("n_train: [200]", r"study_activities\.mocap': walk has 167 frames, and every n_train \[200\] leaves"),
+        (
+            "n_train: [200]",
+            r"study_activities\.mocap': walk has 167 frames, and every n_train \[200\] leaves",
+        ),
         ("n_seeds: 0", r"n_seeds"),
         ("n_seed: 10", r"Additional properties are not allowed \('n_seed' was unexpected\)"),
         ("protocols: [blocks]", r"blocks"),
         ("cv: {mode: sometimes}", r"sometimes"),
-        ("methods: {GPR: {estimator: 'bsrbench.models.gpr:GPR'}}\nrun: [PM, GPR]",
-         r"'methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*No module named"),
-        ("methods: {PM: {params: {n_atom: 8}}}", r"'methods\.PM\.params': n_atom: 8 is not a parameter of "
-                                                 r"bsrbench\.models\.bsr:BayesianSR; expected one of \["),
-        ("methods: {Ridge: {grid: {lam: [1.0]}}}", r"'methods\.Ridge\.grid': lam: \[1\.0\] is not a parameter"),
+        (
+            "methods: {GPR: {estimator: 'bsrbench.models.gpr:GPR'}}\nrun: [PM, GPR]",
+            r"'methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*No module named",
+        ),
+        (
+            "methods: {PM: {params: {n_atom: 8}}}",
+            r"'methods\.PM\.params': n_atom: 8 is not a parameter of "
+            r"bsrbench\.models\.bsr:BayesianSR; expected one of \[",
+        ),
+        (
+            "methods: {Ridge: {grid: {lam: [1.0]}}}",
+            r"'methods\.Ridge\.grid': lam: \[1\.0\] is not a parameter",
+        ),
         # parameter values, checked by each estimator's own validation (before: only when a job ran)
-        ("methods: {PM: {params: {n_atoms: -3}}}",
-         r"'methods\.PM\.params' \(method PM, bsrbench\.models\.bsr:BayesianSR\): .*n_atoms must be >= 1; got -3"),
-        ("methods: {PM: {params: {w_update: foo}}}", r"'methods\.PM\.params' .*w_update must be one of .*got 'foo'"),
-        ("methods: {PM: {params: {n_neighbors: 40}}}",
-         r"'methods\.PM\.params' .*smallest n_train N = 30: BayesianSR needs at least max\(2, n_neighbors=40\)"),
-        ("methods: {PM: {params: {thin: 200}}}", r"thin=200 retains no sweep of the n_iter - n_burn_in = 100"),
-        ("cv: {mode: per_size, folds: 40}", r"'cv\.folds': 40 folds of the smallest n_train N = 30 .*empty folds"),
+        (
+            "methods: {PM: {params: {n_atoms: -3}}}",
+            r"'methods\.PM\.params' \(method PM, bsrbench\.models\.bsr:BayesianSR\): .*n_atoms must be >= 1; got -3",
+        ),
+        (
+            "methods: {PM: {params: {w_update: foo}}}",
+            r"'methods\.PM\.params' .*w_update must be one of .*got 'foo'",
+        ),
+        (
+            "methods: {PM: {params: {n_neighbors: 40}}}",
+            r"'methods\.PM\.params' .*smallest n_train N = 30: BayesianSR needs at least max\(2, n_neighbors=40\)",
+        ),
+        (
+            "methods: {PM: {params: {thin: 200}}}",
+            r"thin=200 retains no sweep of the n_iter - n_burn_in = 100",
+        ),
+        (
+            "cv: {mode: per_size, folds: 40}",
+            r"'cv\.folds': 40 folds of the smallest n_train N = 30 .*empty folds",
+        ),
         # reports/published holds the committed tables; reports/{study} is a study's report folder
-        ("study: published", r"configuration: key 'study', value 'published': not allowed here; .*Not the name of a "
-                             r"shared folder or file \(features, mocap, benchmarks, published, report\.tex\)"),
+        (
+            "study: published",
+            r"configuration: key 'study', value 'published': not allowed here; .*Not the name of a "
+            r"shared folder or file \(features, mocap, benchmarks, published, report\.tex\)",
+        ),
     ],
 )
 def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_path):
@@ -94,19 +146,36 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
 @pytest.mark.parametrize(
     "override, message",
     [
-        ("n_trian=[30]", r"^configuration: unknown key 'n_trian' \(value \[30\]\): Additional properties are not "
-                         r"allowed \('n_trian' was unexpected\); expected one of the keys \[.*'n_train'"),
-        ("protocols=[random, blocks]", r"^configuration: key 'protocols\[1\]', value 'blocks': not one of the allowed "
-                                       r"values; expected one of \['random', 'contiguous', 'cross_trial'\]$"),
-        ("methods={PM: {parms: {n_atoms: 8}}}", r"^configuration: unknown key 'methods\.PM\.parms' \(value "
-                                                r"\{'n_atoms': 8\}\): .*expected one of the keys \[.*'params'"),
-        ("n_seeds=0", r"^configuration: key 'n_seeds', value 0: 0 is less than the minimum of 1; expected minimum: 1 "
-                      r"\(Repetitions"),
-        ("datasets={hsc: {golf: {fromat: mat}}}", r"^data sets \(config/datasets\.yaml\): unknown key "
-                                                  r"'datasets\.hsc\.golf\.fromat' \(value 'mat'\): .*'format'"),
-        ("datasets={hsc: {Golf2: {format: mat, files: [x]}}}",
-         r"^data sets \(config/datasets\.yaml\): a name under key 'datasets\.hsc', value 'Golf2': 'Golf2' does not "
-         r"match '\^\[a-z0-9_\]\+\$'"),
+        (
+            "n_trian=[30]",
+            r"^configuration: unknown key 'n_trian' \(value \[30\]\): Additional properties are not "
+            r"allowed \('n_trian' was unexpected\); expected one of the keys \[.*'n_train'",
+        ),
+        (
+            "protocols=[random, blocks]",
+            r"^configuration: key 'protocols\[1\]', value 'blocks': not one of the allowed "
+            r"values; expected one of \['random', 'contiguous', 'cross_trial'\]$",
+        ),
+        (
+            "methods={PM: {parms: {n_atoms: 8}}}",
+            r"^configuration: unknown key 'methods\.PM\.parms' \(value "
+            r"\{'n_atoms': 8\}\): .*expected one of the keys \[.*'params'",
+        ),
+        (
+            "n_seeds=0",
+            r"^configuration: key 'n_seeds', value 0: 0 is less than the minimum of 1; expected minimum: 1 "
+            r"\(Repetitions",
+        ),
+        (
+            "datasets={hsc: {golf: {fromat: mat}}}",
+            r"^data sets \(config/datasets\.yaml\): unknown key "
+            r"'datasets\.hsc\.golf\.fromat' \(value 'mat'\): .*'format'",
+        ),
+        (
+            "datasets={hsc: {Golf2: {format: mat, files: [x]}}}",
+            r"^data sets \(config/datasets\.yaml\): a name under key 'datasets\.hsc', value 'Golf2': 'Golf2' does not "
+            r"match '\^\[a-z0-9_\]\+\$'",
+        ),
     ],
     ids=["typo", "enum", "nested-typo", "minimum", "datasets-typo", "datasets-name"],
 )
@@ -134,7 +203,9 @@ def test_readme_override_examples_run_in_a_study_of_their_own(line):
     that method."""
     args = shlex.split(line)[1:]
     studies = [a.split("=", 1)[1] for a in args if a.startswith("study=")]
-    assert studies and studies[0] != "quick", f"the example does not name a study of its own: {line}"
+    assert studies and studies[0] != "quick", (
+        f"the example does not name a study of its own: {line}"
+    )
     study = studies[0]
     res = smk("-n", *args)
     out = res.stdout + res.stderr
@@ -142,7 +213,9 @@ def test_readme_override_examples_run_in_a_study_of_their_own(line):
     assert "results/quick/" not in out and "reports/quick/" not in out
     assert f"results/{study}/aggregate/results.csv" in out
     for method in re.findall(r"methods='\{(\w+): \{grid:", line):
-        assert re.search(rf"output: results/{re.escape(study)}/cv/\S+/{method}/n\d+/seed\d+\.json", out), out[-3000:]
+        assert re.search(
+            rf"output: results/{re.escape(study)}/cv/\S+/{method}/n\d+/seed\d+\.json", out
+        ), out[-3000:]
 
 
 @pytest.mark.parametrize("how", ["configfile", "config"])
@@ -152,11 +225,20 @@ def test_exponent_numbers_are_numbers_in_config_files_and_on_the_command_line(ho
     load-time value check (which rejects a string alpha) passes."""
     if how == "configfile":
         over = tmp_path / "over.yaml"
-        over.write_text("gap: 3e1\nprotocols: [contiguous]\nmethods: {Ridge: {params: {alpha: 1e-3}}}\n")
+        over.write_text(
+            "gap: 3e1\nprotocols: [contiguous]\nmethods: {Ridge: {params: {alpha: 1e-3}}}\n"
+        )
         res = smk("-n", "--cores", "1", "--configfile", str(over))
     else:
-        res = smk("-n", "--cores", "1", "--config", "methods={Ridge: {params: {alpha: 1e-3}}}", "n_train=[3e1, 1e2]",
-                  "n_seeds=2e0")
+        res = smk(
+            "-n",
+            "--cores",
+            "1",
+            "--config",
+            "methods={Ridge: {params: {alpha: 1e-3}}}",
+            "n_train=[3e1, 1e2]",
+            "n_seeds=2e0",
+        )
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
 
 
@@ -164,14 +246,22 @@ def test_run_outside_the_repository_and_capital_activity_names_are_named(tmp_pat
     """Fresh-user findings: with --directory elsewhere, config/datasets.yaml is not found and Snakemake skips it
     silently (the error used to be "unknown data source 'hsc'; config/datasets.yaml defines []"); an activity
     name with capitals passed the schema but no rule can build it (wildcards are lower case)."""
-    res = smk("-n", "--cores", "1", "-d", str(tmp_path), "--configfile", str(ROOT / "config" / "ci.yaml"))
+    res = smk(
+        "-n", "--cores", "1", "-d", str(tmp_path), "--configfile", str(ROOT / "config" / "ci.yaml")
+    )
     assert res.returncode != 0
-    assert "config/datasets.yaml was not loaded from the working directory" in res.stdout + res.stderr
+    assert (
+        "config/datasets.yaml was not loaded from the working directory" in res.stdout + res.stderr
+    )
     over = tmp_path / "upper.yaml"
-    over.write_text("datasets: {hsc: {Golf2: {kind: mat, file: resources/paper-features/x4921.mat}}}\n")
+    over.write_text(
+        "datasets: {hsc: {Golf2: {kind: mat, file: resources/paper-features/x4921.mat}}}\n"
+    )
     res = smk("-n", "--cores", "1", "--configfile", str(over))
     assert res.returncode != 0
-    assert re.search(r"Golf2.*does not match.*\^\[a-z0-9_\]\+\$", res.stdout + res.stderr, re.S), res.stderr[-3000:]
+    assert re.search(r"Golf2.*does not match.*\^\[a-z0-9_\]\+\$", res.stdout + res.stderr, re.S), (
+        res.stderr[-3000:]
+    )
 
 
 def test_boolean_on_the_command_line(tmp_path):
@@ -182,14 +272,24 @@ def test_boolean_on_the_command_line(tmp_path):
 
 
 #: Files that every study shares: the features and poses (and their inputs and logs), built once for all.
-SHARED_PREFIXES = ("results/features/", "results/mocap/", "resources/", "logs/features/", "logs/mocap/",
-                   "logs/download/")
+SHARED_PREFIXES = (
+    "results/features/",
+    "results/mocap/",
+    "resources/",
+    "logs/features/",
+    "logs/mocap/",
+    "logs/download/",
+)
 
 
 def _planned_files(res):
     """The output and log files of the jobs of a dry run (Snakemake's job listing)."""
-    return [f.strip() for ln in res.stdout.splitlines() if ln.strip().startswith(("output:", "log:"))
-            for f in ln.split(":", 1)[1].split(",")]
+    return [
+        f.strip()
+        for ln in res.stdout.splitlines()
+        if ln.strip().startswith(("output:", "log:"))
+        for f in ln.split(":", 1)[1].split(",")
+    ]
 
 
 def test_the_quick_study_builds_only_the_tables_with_a_studied_activity():
@@ -197,8 +297,13 @@ def test_the_quick_study_builds_only_the_tables_with_a_studied_activity():
     built, two of them blocks of "no data" rows (mocap Table I: "data not on this machine" three times)."""
     res = smk("-n", "--forceall", "--cores", "1")
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
-    tables = sorted(f for f in _planned_files(res) if re.fullmatch(r"reports/quick/tables/table\w+\.tex", f))
-    assert tables == ["reports/quick/tables/tableII_mocap.tex", "reports/quick/tables/tableI_hsc.tex"]
+    tables = sorted(
+        f for f in _planned_files(res) if re.fullmatch(r"reports/quick/tables/table\w+\.tex", f)
+    )
+    assert tables == [
+        "reports/quick/tables/tableII_mocap.tex",
+        "reports/quick/tables/tableI_hsc.tex",
+    ]
 
 
 def test_two_studies_share_no_report_result_or_log_file():
@@ -207,8 +312,10 @@ def test_two_studies_share_no_report_result_or_log_file():
     features and poses are in both studies' jobs: once they are built, Snakemake's directory lock (which refuses a
     run whose jobs would write a file that a running one reads or writes) lets the two studies run at once."""
     planned = {}
-    for study, args in (("ci", ("--configfile", "config/ci.yaml")),
-                        ("ablation-ci", ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml"))):
+    for study, args in (
+        ("ci", ("--configfile", "config/ci.yaml")),
+        ("ablation-ci", ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")),
+    ):
         res = smk("-n", "--forceall", "--cores", "1", *args)
         assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
         planned[study] = set(_planned_files(res))
@@ -221,8 +328,11 @@ def test_two_studies_share_no_report_result_or_log_file():
     assert all(f.startswith(SHARED_PREFIXES) for f in both), sorted(both)
 
 
-@pytest.mark.parametrize("args", [("--report", "reports/report.html"), ("--report=reports/paper/report.html",)],
-                         ids=["shared-folder", "other-study"])
+@pytest.mark.parametrize(
+    "args",
+    [("--report", "reports/report.html"), ("--report=reports/paper/report.html",)],
+    ids=["shared-folder", "other-study"],
+)
 def test_the_html_report_goes_to_the_study_folder(args, tmp_path):
     """The HTML report of study ci is refused in reports/ itself or in another study's folder, where it would
     pass for that study's (the report's location is the one place Snakemake leaves to the command line)."""
@@ -249,7 +359,15 @@ def copy_tree(work):
 def ci_run(tmp_path_factory):
     """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
     work = copy_tree(tmp_path_factory.mktemp("study"))
-    res = smk("reports/ci/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=900)
+    res = smk(
+        "reports/ci/report.pdf",
+        "--cores",
+        "2",
+        "--configfile",
+        "config/ci.yaml",
+        cwd=work,
+        timeout=900,
+    )
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work
 
@@ -262,7 +380,9 @@ def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
     assert set(df["method"]) == {"RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge"}
     assert df["error"].between(0, 180).all()
     assert df.loc[df["method"] == "PM", "coverage_90"].between(0, 1).all()
-    assert (ci_run / "results" / "ci" / "cv" / "random" / "hsc" / "golf" / "PM" / "n30" / "seed0.json").is_file()
+    assert (
+        ci_run / "results" / "ci" / "cv" / "random" / "hsc" / "golf" / "PM" / "n30" / "seed0.json"
+    ).is_file()
     assert not (ci_run / "results" / "fit").exists()  # every fit of the study is under results/ci/
 
 
@@ -272,11 +392,18 @@ def test_ci_tables_have_the_paper_rows(ci_run):
     assert not (ci_run / "reports" / "ci" / "tables" / "tableII_hsc.tex").exists()
     body = (ci_run / "reports" / "ci" / "tables" / "body.tex").read_text()
     assert r"\input{tables/tableI_hsc}" in body and "tableII" not in body
-    assert re.search(r"Table II \(.*\) is not shown for the hsc data: this study has none of its activities", body)
+    assert re.search(
+        r"Table II \(.*\) is not shown for the hsc data: this study has none of its activities",
+        body,
+    )
     for table, names in list(PAPER_TABLE_ROWS.items())[:1]:
         text = (ci_run / "reports" / "ci" / "tables" / f"table{table}_hsc.tex").read_text()
         assert r"\toprule" in text and r"\bottomrule" in text
-        rows = [ln.split(" & ")[0] for ln in text.splitlines() if ln.endswith(r"\\") and not ln.startswith(r"\emph")]
+        rows = [
+            ln.split(" & ")[0]
+            for ln in text.splitlines()
+            if ln.endswith(r"\\") and not ln.startswith(r"\emph")
+        ]
         assert rows[0] == "Activity"
         assert list(dict.fromkeys(rows[1:])) == names
     table_i = (ci_run / "reports/ci/tables/tableI_hsc.tex").read_text()
@@ -310,12 +437,19 @@ def test_job_server_stopped_with_the_run_and_left_no_files(ci_run):
 
 
 def _planned_outputs(res):
-    return [f.strip() for ln in res.stdout.splitlines() if ln.strip().startswith("output:")
-            for f in ln.split(":", 1)[1].split(",")]
+    return [
+        f.strip()
+        for ln in res.stdout.splitlines()
+        if ln.strip().startswith("output:")
+        for f in ln.split(":", 1)[1].split(",")
+    ]
 
 
-@pytest.mark.parametrize("args", [("--config", "study=other"), ("--configfile", "config/paper.yaml")],
-                         ids=["other-study", "paper"])
+@pytest.mark.parametrize(
+    "args",
+    [("--config", "study=other"), ("--configfile", "config/paper.yaml")],
+    ids=["other-study", "paper"],
+)
 def test_another_study_touches_nothing_of_this_one(ci_run, args):
     res = smk("-n", "--cores", "2", *args, cwd=ci_run)
     assert res.returncode == 0, res.stderr[-3000:]
@@ -326,16 +460,35 @@ def test_another_study_touches_nothing_of_this_one(ci_run, args):
     assert not [f for f in planned if f.startswith(("results/ci/", "reports/ci/", "logs/ci/"))]
     # its report goes to its own folder, and shared features and poses stay up to date too: nothing planned exists
     reports = [f for f in planned if f.startswith("reports/")]
-    assert f"reports/{study}/report.pdf" in reports and all(f.startswith(f"reports/{study}/") for f in reports)
+    assert f"reports/{study}/report.pdf" in reports and all(
+        f.startswith(f"reports/{study}/") for f in reports
+    )
     assert not [f for f in planned if (ci_run / f).exists()]
-    assert r"Study: \textbf{ci}" in (ci_run / "reports" / "ci" / "tables" / "findings.tex").read_text()
+    assert (
+        r"Study: \textbf{ci}" in (ci_run / "reports" / "ci" / "tables" / "findings.tex").read_text()
+    )
 
 
 #: Rules submitted as cluster jobs under profiles/slurm; every other rule is in the Snakefile's `localrules`.
 CLUSTER_RULES = {"fit", "fit_chain", "cv", "features_codebook", "features_mocap"}
-LOCAL_RULES = {"all", "aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration", "plot_trace", "plot_gxy",
-                 "report_why_pm", "pool_chains",
-               "plot_subjective", "report_pdf", "features_mat", "mocap_poses", "download_cmu_asf", "download_cmu_amc"}
+LOCAL_RULES = {
+    "all",
+    "aggregate",
+    "table",
+    "report_text",
+    "plot_error_vs_ntrain",
+    "plot_calibration",
+    "plot_trace",
+    "plot_gxy",
+    "report_why_pm",
+    "pool_chains",
+    "plot_subjective",
+    "report_pdf",
+    "features_mat",
+    "mocap_poses",
+    "download_cmu_asf",
+    "download_cmu_amc",
+}
 
 
 def test_every_rule_is_local_or_a_cluster_job():
@@ -352,25 +505,60 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
     for d in ("results/ci/aggregate", "reports/ci/tables", "reports/ci/figures"):
         shutil.rmtree(ci_run / d)
     (ci_run / "reports" / "ci" / "report.pdf").unlink()
-    targets = ["reports/ci/report.pdf", "results/features/hsc/run.npz", "results/mocap/mocap/walk.npz"]
-    res = smk(*targets, "--workflow-profile", "profiles/slurm", "--configfile", "config/ci.yaml", cwd=ci_run)
+    targets = [
+        "reports/ci/report.pdf",
+        "results/features/hsc/run.npz",
+        "results/mocap/mocap/walk.npz",
+    ]
+    res = smk(
+        *targets,
+        "--workflow-profile",
+        "profiles/slurm",
+        "--configfile",
+        "config/ci.yaml",
+        cwd=ci_run,
+    )
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-4000:]
     assert "workflow specific profile profiles/slurm" in out
     ran_local = set(re.findall(r"^localrule (\w+):", out, re.M))
     submitted = set(re.findall(r"^rule (\w+):", out, re.M))
-    assert ran_local == {"aggregate", "table", "report_text", "plot_error_vs_ntrain", "plot_calibration", "plot_trace",
-                         "report_why_pm",
-                         "plot_subjective", "report_pdf", "features_mat", "mocap_poses"}
-    assert submitted == set()  # and the fits and CV of the local run were not rerun: where they ran is no param
+    assert ran_local == {
+        "aggregate",
+        "table",
+        "report_text",
+        "plot_error_vs_ntrain",
+        "plot_calibration",
+        "plot_trace",
+        "report_why_pm",
+        "plot_subjective",
+        "report_pdf",
+        "features_mat",
+        "mocap_poses",
+    }
+    assert (
+        submitted == set()
+    )  # and the fits and CV of the local run were not rerun: where they ran is no param
     assert (ci_run / "reports" / "ci" / "report.pdf").read_bytes()[:5] == b"%PDF-"
 
 
-@pytest.mark.skipif(shutil.which("sbatch") is not None, reason="a real SLURM: this would submit jobs")
+@pytest.mark.skipif(
+    shutil.which("sbatch") is not None, reason="a real SLURM: this would submit jobs"
+)
 def test_slurm_profile_submits_fit_and_cv_jobs(ci_run):
     """New fit and CV jobs go to SLURM (here, without SLURM, their submission fails); nothing else is touched."""
-    targets = ["results/ci/fit/random/hsc/golf/NN1/n40/seed0.json", "results/ci/cv/random/hsc/golf/Ridge/n40/seed0.json"]
-    res = smk(*targets, "--workflow-profile", "profiles/slurm", "--configfile", "config/ci.yaml", cwd=ci_run)
+    targets = [
+        "results/ci/fit/random/hsc/golf/NN1/n40/seed0.json",
+        "results/ci/cv/random/hsc/golf/Ridge/n40/seed0.json",
+    ]
+    res = smk(
+        *targets,
+        "--workflow-profile",
+        "profiles/slurm",
+        "--configfile",
+        "config/ci.yaml",
+        cwd=ci_run,
+    )
     out = res.stdout + res.stderr
     assert res.returncode != 0
     assert set(re.findall(r"^rule (\w+):", out, re.M)) == {"fit", "cv"}, out[-3000:]
@@ -381,7 +569,10 @@ def test_slurm_profile_submits_fit_and_cv_jobs(ci_run):
 
 def _snapshot(work):
     """Bytes of every report output (tables, figures, PDF, HTML) and of the aggregate table."""
-    paths = [*sorted((work / "reports").rglob("*")), work / "results" / "ci" / "aggregate" / "results.csv"]
+    paths = [
+        *sorted((work / "reports").rglob("*")),
+        work / "results" / "ci" / "aggregate" / "results.csv",
+    ]
     return {p.relative_to(work): p.read_bytes() for p in paths if p.is_file()}
 
 
@@ -395,12 +586,17 @@ def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(
         "run: [RVM, TGP, SR, DDL, PM, NN1, Ridge, GPR]\n"
     )
     args = ("--configfile", "config/ci.yaml", str(bad))
-    for cmd in (("--cores", "2", *args), ("reports/ci/report.pdf", "--cores", "2", *args),
-                ("--report", "reports/ci/report.html", *args)):
+    for cmd in (
+        ("--cores", "2", *args),
+        ("reports/ci/report.pdf", "--cores", "2", *args),
+        ("--report", "reports/ci/report.html", *args),
+    ):
         res = smk(*cmd, cwd=ci_run)
         out = res.stdout + res.stderr
         assert res.returncode != 0, out[-3000:]
-        assert re.search(r"methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used", out), out[-3000:]
+        assert re.search(
+            r"methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used", out
+        ), out[-3000:]
     assert _snapshot(ci_run) == before
 
 
@@ -409,36 +605,71 @@ def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
     before = _snapshot(ci_run)
     more = ci_run / "seeds.yaml"
     more.write_text("n_seeds: 3\n")
-    res = smk("--configfile", "config/ci.yaml", str(more), "--report", "reports/ci/report.html", cwd=ci_run)
+    res = smk(
+        "--configfile",
+        "config/ci.yaml",
+        str(more),
+        "--report",
+        "reports/ci/report.html",
+        cwd=ci_run,
+    )
     out = res.stdout + res.stderr
     assert res.returncode != 0, out[-3000:]
-    assert re.search(r"results\.csv: does not match the configuration.*seed: the table has \[0, 1\], "
-                     r"the configuration \[0, 1, 2\]", out), out[-3000:]
+    assert re.search(
+        r"results\.csv: does not match the configuration.*seed: the table has \[0, 1\], "
+        r"the configuration \[0, 1, 2\]",
+        out,
+    ), out[-3000:]
     assert _snapshot(ci_run) == before
 
 
-@pytest.mark.parametrize("override, changed", [
-    ("n_seeds=3", r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 7 job\(s\) to add, 0 no longer"),
-    ("run=[RVM,PM]", r"method: the table has \['DDL', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the configuration "
-                     r"\['PM', 'RVM'\]; 0 job\(s\) to add, 10 no longer configured"),
-])
-def test_a_design_changed_under_the_same_study_name_is_named_at_the_start(ci_run, override, changed):
+@pytest.mark.parametrize(
+    "override, changed",
+    [
+        (
+            "n_seeds=3",
+            r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 7 job\(s\) to add, 0 no longer",
+        ),
+        (
+            "run=[RVM,PM]",
+            r"method: the table has \['DDL', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the configuration "
+            r"\['PM', 'RVM'\]; 0 job\(s\) to add, 10 no longer configured",
+        ),
+    ],
+)
+def test_a_design_changed_under_the_same_study_name_is_named_at_the_start(
+    ci_run, override, changed
+):
     """Before: nothing said that the ci study's results were of another design until the aggregate check of a
     report rule failed. Now the dry run says it before any job: what changed, that the aggregate and report
     will be rebuilt, and how to keep the old study (a study name of its own) or start afresh."""
     before = _snapshot(ci_run)
-    res = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", override, cwd=ci_run)
+    res = smk(
+        "-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", override, cwd=ci_run
+    )
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
-    warning = re.search(r"Warning: study 'ci': the configuration differs from the design of its results in "
-                        r"results/ci/ \(results/ci/aggregate/results\.csv: (.*)", out)
+    warning = re.search(
+        r"Warning: study 'ci': the configuration differs from the design of its results in "
+        r"results/ci/ \(results/ci/aggregate/results\.csv: (.*)",
+        out,
+    )
     assert warning, out[-3000:]
     assert re.match(changed, warning.group(1)), warning.group(1)
     assert "run this design under a study name of its own (--config study=NAME" in out
     assert "delete results/ci/ and reports/ci/" in out
     assert out.index("Warning: study 'ci'") < out.index("Job stats")  # before the jobs
     assert _snapshot(ci_run) == before
-    same = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config", "n_train=[30]", cwd=ci_run)
+    same = smk(
+        "-n",
+        "--cores",
+        "1",
+        "--configfile",
+        "config/ci.yaml",
+        "--config",
+        "n_train=[30]",
+        cwd=ci_run,
+    )
     assert same.returncode == 0 and "the configuration differs" not in same.stdout + same.stderr
 
 
@@ -447,20 +678,33 @@ def test_a_changed_method_setting_reruns_its_fits_and_cv(ci_run):
     Snakemake's params trigger ignores such params: --config methods='{PM: {params: {n_iter: 60}}}' reran no fit,
     left the results of n_iter = 40, and page 1 of the rebuilt report named the override."""
     before = _snapshot(ci_run)
-    res = smk("-n", "--cores", "1", "--configfile", "config/ci.yaml", "--config",
-              "methods={PM: {params: {n_iter: 60}}}", cwd=ci_run)
+    res = smk(
+        "-n",
+        "--cores",
+        "1",
+        "--configfile",
+        "config/ci.yaml",
+        "--config",
+        "methods={PM: {params: {n_iter: 60}}}",
+        cwd=ci_run,
+    )
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
-    pm_jobs = set(re.findall(r"output: results/ci/(?:fit|cv)/\S+/(\w+)/n\d+/seed\d+\.(?:npz|json)", out))
+    pm_jobs = set(
+        re.findall(r"output: results/ci/(?:fit|cv)/\S+/(\w+)/n\d+/seed\d+\.(?:npz|json)", out)
+    )
     assert int(counts.get("fit", 0)) >= 1 and pm_jobs == {"PM"}, out[-3000:]  # PM's jobs only
     assert "Params have changed since last execution" in out and "'n_iter': 60" in out
-    assert _snapshot(ci_run) == before  # (test_ci_rerun_is_a_no_op: the unchanged configuration reruns nothing)
+    assert (
+        _snapshot(ci_run) == before
+    )  # (test_ci_rerun_is_a_no_op: the unchanged configuration reruns nothing)
 
 
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
-    from bsrbench.reporting.report import latex_log_problems
     from pdftext import figure_text_sizes
+
+    from bsrbench.reporting.report import latex_log_problems
 
     log = (ci_run / "reports" / "ci" / "build" / "report.log").read_text(errors="replace")
     assert latex_log_problems(log, max_overfull_pt=1.0) == []
@@ -476,8 +720,9 @@ def test_ci_report_metadata_and_page_one_header(ci_run):
     info = subprocess.run(["pdfinfo", pdf], capture_output=True, text=True).stdout
     assert re.search(r"^Title:\s+bsrbench study report: reproducing", info, re.M), info
     assert re.search(r"^Author:\s+bsrbench workflow", info, re.M), info
-    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", "-layout", pdf, "-"],
-                           capture_output=True, text=True).stdout
+    page1 = subprocess.run(
+        ["pdftotext", "-f", "1", "-l", "1", "-layout", pdf, "-"], capture_output=True, text=True
+    ).stdout
     for field in ("Built", "Code", "Configuration", "Machine"):
         assert re.search(rf"^\s*{field}\s", page1, re.M), page1[:2000]
     assert "config/ci.yaml" in page1 and "UTC" in page1
@@ -493,23 +738,46 @@ def test_ci_report_names_the_config_overrides_it_ran_with(ci_run, tmp_path):
     profile's), is not part of the study's configuration: switching it reruns nothing."""
     work = tmp_path / "work"
     shutil.copytree(ci_run, work, symlinks=True)
-    res = smk("reports/ci/report.pdf", "-n", "--cores", "1", "--configfile", "config/ci.yaml",
-              "--config", "job_server=false", cwd=work)
+    res = smk(
+        "reports/ci/report.pdf",
+        "-n",
+        "--cores",
+        "1",
+        "--configfile",
+        "config/ci.yaml",
+        "--config",
+        "job_server=false",
+        cwd=work,
+    )
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
-    res = smk("reports/ci/report.pdf", "--cores", "1", "--configfile", "config/ci.yaml",
-              "--config", "job_server=false", "n_train=[30]", cwd=work)
+    res = smk(
+        "reports/ci/report.pdf",
+        "--cores",
+        "1",
+        "--configfile",
+        "config/ci.yaml",
+        "--config",
+        "job_server=false",
+        "n_train=[30]",
+        cwd=work,
+    )
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
     assert set(re.findall(r"^localrule (\w+):", out, re.M)) == {"report_pdf"}, out[-3000:]
-    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", str(work / "reports" / "ci" / "report.pdf"), "-"],
-                           capture_output=True, text=True).stdout
+    page1 = subprocess.run(
+        ["pdftotext", "-f", "1", "-l", "1", str(work / "reports" / "ci" / "report.pdf"), "-"],
+        capture_output=True,
+        text=True,
+    ).stdout
     flat = " ".join(page1.split())
     assert "config/ci.yaml (in the order they apply), then --config 'n_train=[30]'" in flat, flat
     assert "job_server" not in flat
 
 
 def test_ci_rerun_is_a_no_op(ci_run):
-    res = smk("reports/ci/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run)
+    res = smk(
+        "reports/ci/report.pdf", "-n", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run
+    )
     assert res.returncode == 0 and "Nothing to be done" in res.stdout, res.stdout[-3000:]
 
 
@@ -525,9 +793,17 @@ def test_two_studies_run_at_once_in_one_working_tree(ci_run):
         "ablation-ci": ["--configfile", "config/ablation.yaml", "config/ablation-ci.yaml"],
         "ci": ["--configfile", "config/ci.yaml", "--forcerun", "aggregate"],
     }
-    procs = {study: subprocess.Popen([SNAKEMAKE, f"reports/{study}/report.pdf", "--cores", "1", *args], cwd=ci_run,
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-             for study, args in runs.items()}
+    procs = {
+        study: subprocess.Popen(
+            [SNAKEMAKE, f"reports/{study}/report.pdf", "--cores", "1", *args],
+            cwd=ci_run,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+        )
+        for study, args in runs.items()
+    }
     outs = {study: p.communicate(timeout=900)[0] for study, p in procs.items()}
     for study, p in procs.items():
         assert p.returncode == 0, f"{study}:\n" + outs[study][-4000:]
@@ -535,16 +811,32 @@ def test_two_studies_run_at_once_in_one_working_tree(ci_run):
     assert re.search(r"^localrule aggregate:", outs["ci"], re.M)  # the ci run did redo its report
     pdfs = [(ci_run / "reports" / study / "report.pdf").read_bytes() for study in runs]
     assert all(pdf[:5] == b"%PDF-" for pdf in pdfs) and pdfs[0] != pdfs[1]
-    assert {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")} == tables
+    assert {
+        p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")
+    } == tables
 
 
 @pytest.mark.slow
 def test_ci_tables_are_identical_when_everything_is_recomputed(ci_run):
     before = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
-    for d in ("results/ci/fit", "results/ci/cv", "results/ci/aggregate", "reports/ci/tables", "reports/ci/figures"):
+    for d in (
+        "results/ci/fit",
+        "results/ci/cv",
+        "results/ci/aggregate",
+        "reports/ci/tables",
+        "reports/ci/figures",
+    ):
         shutil.rmtree(ci_run / d)
     (ci_run / "reports" / "ci" / "report.pdf").unlink()
-    res = smk("reports/ci/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml", cwd=ci_run, timeout=900)
+    res = smk(
+        "reports/ci/report.pdf",
+        "--cores",
+        "2",
+        "--configfile",
+        "config/ci.yaml",
+        cwd=ci_run,
+        timeout=900,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     after = {p.name: p.read_text() for p in (ci_run / "reports" / "ci" / "tables").glob("*.tex")}
     assert after == before

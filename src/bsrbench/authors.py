@@ -31,7 +31,11 @@ from .mocap.skeleton import Skeleton, euler_matrix, forward_kinematics
 #: Joints of ``hierarchy2.bvh`` (mzolfaghari/3D-human-pose-estimation) in file order, with parent and offset.
 #: End sites are named ``<joint>_End`` as :func:`bsrbench.mocap.parse_bvh` names them.
 _HIERARCHY = (
-    ("Hips", None, (0.0, 0.0, 0.0)),  # the file's root offset (-24.8, 33.0, 8.8) only moves the figure
+    (
+        "Hips",
+        None,
+        (0.0, 0.0, 0.0),
+    ),  # the file's root offset (-24.8, 33.0, 8.8) only moves the figure
     ("LeftHip", "Hips", (3.43, 0.0, 0.0)),
     ("LeftKnee", "LeftHip", (0.0, -18.47, 0.0)),
     ("LeftAnkle", "LeftKnee", (0.0, -17.95, 0.0)),
@@ -67,11 +71,25 @@ HSC_ANGLE_NAMES = [f"{j}_{c}" for j in HSC_JOINTS for c in HSC_CHANNELS]
 #: head, right collar/shoulder/elbow/wrist, left collar/shoulder/elbow/wrist, right hip/knee/ankle, left
 #: hip/knee/ankle): entry k plays the role of ``JOINT_MAPS[kind][k]``.
 HSC_ROLE_ORDER = [
-    "Hips", "Chest", "CS_BVH", "Neck", "Head",
-    "RightCollar", "RightShoulder", "RightElbow", "RightWrist",
-    "LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist",
-    "RightHip", "RightKnee", "RightAnkle",
-    "LeftHip", "LeftKnee", "LeftAnkle",
+    "Hips",
+    "Chest",
+    "CS_BVH",
+    "Neck",
+    "Head",
+    "RightCollar",
+    "RightShoulder",
+    "RightElbow",
+    "RightWrist",
+    "LeftCollar",
+    "LeftShoulder",
+    "LeftElbow",
+    "LeftWrist",
+    "RightHip",
+    "RightKnee",
+    "RightAnkle",
+    "LeftHip",
+    "LeftKnee",
+    "LeftAnkle",
 ]
 _AXIS = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
 _ORDER = [_AXIS[c] for c in HSC_CHANNELS]
@@ -91,14 +109,18 @@ def hsc_skeleton():
             channels.append(("Xposition", "Yposition", "Zposition") + HSC_CHANNELS)
         else:
             channels.append(HSC_CHANNELS)
-    return Skeleton(names, parents, [o for _, _, o in _HIERARCHY], channels, [n.endswith("_End") for n in names])
+    return Skeleton(
+        names, parents, [o for _, _, o in _HIERARCHY], channels, [n.endswith("_End") for n in names]
+    )
 
 
 def _pose_angles(Y, what="hsc pose"):
     """(F, 57) float array from a row (57,), rows (F, 57) or rows with the root translation first (F, 60)."""
     Y = np.atleast_2d(np.asarray(Y, dtype=float))
     if Y.ndim != 2 or Y.shape[1] not in (57, 60):
-        raise InputError(f"{what}: expected rows of 57 angles (or 60 with the root translation); got {Y.shape}")
+        raise InputError(
+            f"{what}: expected rows of 57 angles (or 60 with the root translation); got {Y.shape}"
+        )
     Y = Y[:, -57:]
     if not np.all(np.isfinite(Y)):
         raise InputError(f"{what}: has non-finite angles")
@@ -111,7 +133,7 @@ def hsc_rotations(Y):
     F = Y.shape[0]
     R = np.empty((F, 19, 3, 3))
     for j in range(19):
-        R[:, j] = euler_matrix(_ORDER, Y[:, 3 * j:3 * j + 3])
+        R[:, j] = euler_matrix(_ORDER, Y[:, 3 * j : 3 * j + 3])
     return R
 
 
@@ -146,7 +168,9 @@ def hsc_stick_figure(angles):
     """
     a = np.asarray(angles, dtype=float)
     if a.shape != (57,):
-        raise InputError(f"hsc_stick_figure: expected the 57 angles of one pose; got shape {a.shape}")
+        raise InputError(
+            f"hsc_stick_figure: expected the 57 angles of one pose; got shape {a.shape}"
+        )
     return hsc_positions(a[None])[0], hsc_skeleton().parents.copy()
 
 
@@ -166,7 +190,7 @@ def _window_fit(S, W):
     """Per-axis affine fit W ~ a*S + b over a window: slopes (3,), intercepts (3,), residual (L, 3)."""
     Sm, Wm = S.mean(0), W.mean(0)
     Sc, Wc = S - Sm, W - Wm
-    var = (Sc ** 2).sum(0)
+    var = (Sc**2).sum(0)
     a = np.where(var > 1e-12, (Sc * Wc).sum(0) / np.maximum(var, 1e-12), 0.0)
     b = Wm - a * Sm
     return a, b, W - (a * S + b)
@@ -199,13 +223,21 @@ def align_rows(T_rows, trials, stride=4, min_overlap=8):
                 L = min(len(S_all), R - r0)
                 if L < min_overlap:
                     continue
-                S, W = S_all[:L], T_rows[r0:r0 + L]
+                S, W = S_all[:L], T_rows[r0 : r0 + L]
                 a, b, res = _window_fit(S, W)
                 spread = np.sqrt(((W - W.mean(0)) ** 2).sum(1).mean())
-                score = np.sqrt((res ** 2).sum(1).mean()) / max(spread, 1e-9)
+                score = np.sqrt((res**2).sum(1).mean()) / max(spread, 1e-9)
                 if best is None or score < best["score"]:
-                    best = {"trial": tid, "phase": phase, "start_row": r0, "n_rows": L, "slope": a,
-                            "intercept": b, "score": float(score), "rms": np.sqrt((res ** 2).mean(0))}
+                    best = {
+                        "trial": tid,
+                        "phase": phase,
+                        "start_row": r0,
+                        "n_rows": L,
+                        "slope": a,
+                        "intercept": b,
+                        "score": float(score),
+                        "rms": np.sqrt((res**2).mean(0)),
+                    }
         out.append(best)
     return out
 
@@ -228,7 +260,7 @@ def align_rows_by_angles(Y_rows, trial_angles, stride=4, min_overlap=8):
             L = min(len(S_all), R - r0)
             if L < min_overlap:
                 continue
-            score = float(np.median(np.abs(wrapped_diff(Y_rows[r0:r0 + L], S_all[:L]))))
+            score = float(np.median(np.abs(wrapped_diff(Y_rows[r0 : r0 + L], S_all[:L]))))
             if best is None or score < best["score"]:
                 best = {"phase": phase, "start_row": r0, "n_rows": L, "score": score}
     nan3 = np.full(3, np.nan)
@@ -295,7 +327,7 @@ def ours_to_hsc_angles(R_ours_roles, A, B):
     out = np.empty((F, 57))
     for k, j in enumerate(HSC_ROLE_ORDER):
         c = HSC_JOINTS.index(j)
-        out[:, 3 * c:3 * c + 3] = canonical_euler(A[k] @ R[:, k] @ B[k])
+        out[:, 3 * c : 3 * c + 3] = canonical_euler(A[k] @ R[:, k] @ B[k])
     return out
 
 
@@ -319,8 +351,19 @@ def save_angle_mapping(path, A, B, our_joints, skeleton_kind):
 
     a = Rotation.from_matrix(np.asarray(A)).as_rotvec()
     b = Rotation.from_matrix(np.asarray(B)).as_rotvec()
-    df = pd.DataFrame({"hsc_joint": HSC_ROLE_ORDER, "our_joint": list(our_joints), "skeleton_kind": skeleton_kind,
-                       "A_x": a[:, 0], "A_y": a[:, 1], "A_z": a[:, 2], "B_x": b[:, 0], "B_y": b[:, 1], "B_z": b[:, 2]})
+    df = pd.DataFrame(
+        {
+            "hsc_joint": HSC_ROLE_ORDER,
+            "our_joint": list(our_joints),
+            "skeleton_kind": skeleton_kind,
+            "A_x": a[:, 0],
+            "A_y": a[:, 1],
+            "A_z": a[:, 2],
+            "B_x": b[:, 0],
+            "B_y": b[:, 1],
+            "B_z": b[:, 2],
+        }
+    )
     with atomic_path(path) as tmp:
         df.to_csv(tmp, index=False, float_format="%.17g")
 
@@ -342,7 +385,9 @@ def load_angle_mapping(path):
     if missing:
         raise DataFileError(path, f"has no column(s) {missing}; expected {need}")
     if list(df["hsc_joint"]) != HSC_ROLE_ORDER:
-        raise DataFileError(path, f"hsc_joint must list {HSC_ROLE_ORDER} in that order; got {list(df['hsc_joint'])}")
+        raise DataFileError(
+            path, f"hsc_joint must list {HSC_ROLE_ORDER} in that order; got {list(df['hsc_joint'])}"
+        )
     A = Rotation.from_rotvec(df[["A_x", "A_y", "A_z"]].to_numpy(float)).as_matrix()
     B = Rotation.from_rotvec(df[["B_x", "B_y", "B_z"]].to_numpy(float)).as_matrix()
     return A, B, [str(j) for j in df["our_joint"]], str(df["skeleton_kind"].iloc[0])
@@ -366,7 +411,7 @@ def column_correlations(Y_theirs, Y_ours, ours_names):
     Yo = np.unwrap(np.asarray(Y_ours, dtype=float), period=360.0, axis=0)
     zt = Yt - Yt.mean(0)
     zo = Yo - Yo.mean(0)
-    st, so = np.sqrt((zt ** 2).sum(0)), np.sqrt((zo ** 2).sum(0))
+    st, so = np.sqrt((zt**2).sum(0)), np.sqrt((zo**2).sum(0))
     C = (zt.T @ zo) / np.maximum(np.outer(st, so), 1e-12)
     C[st < 1e-9] = 0.0
     C[:, so < 1e-9] = 0.0
@@ -374,12 +419,28 @@ def column_correlations(Y_theirs, Y_ours, ours_names):
     for i, name in enumerate(HSC_ANGLE_NAMES):
         k = int(np.argmax(np.abs(C[i])))
         if C[i, k] == 0.0:
-            rows.append({"hsc_column": name, "ours_column": "", "corr": 0.0, "slope": 0.0,
-                         "offset": float(Yt[:, i].mean()), "rms": float(Yt[:, i].std())})
+            rows.append(
+                {
+                    "hsc_column": name,
+                    "ours_column": "",
+                    "corr": 0.0,
+                    "slope": 0.0,
+                    "offset": float(Yt[:, i].mean()),
+                    "rms": float(Yt[:, i].std()),
+                }
+            )
             continue
         slope = (zt[:, i] @ zo[:, k]) / (so[k] ** 2)
         offset = Yt[:, i].mean() - slope * Yo[:, k].mean()
         rms = np.sqrt(np.mean((Yt[:, i] - slope * Yo[:, k] - offset) ** 2))
-        rows.append({"hsc_column": name, "ours_column": ours_names[k], "corr": float(C[i, k]),
-                     "slope": float(slope), "offset": float(offset), "rms": float(rms)})
+        rows.append(
+            {
+                "hsc_column": name,
+                "ours_column": ours_names[k],
+                "corr": float(C[i, k]),
+                "slope": float(slope),
+                "offset": float(offset),
+                "rms": float(rms),
+            }
+        )
     return rows

@@ -25,9 +25,8 @@ The Snakefile calls both functions right after the configuration is loaded, befo
 import re
 from pathlib import Path
 
-from snakemake.utils import update_config
-
 import yaml
+from snakemake.utils import update_config
 
 from .errors import InputError
 
@@ -74,7 +73,11 @@ def load_schema(*paths):
 
 
 def _resolve(node, root):
-    while isinstance(node, dict) and isinstance(node.get("$ref"), str) and node["$ref"].startswith("#/"):
+    while (
+        isinstance(node, dict)
+        and isinstance(node.get("$ref"), str)
+        and node["$ref"].startswith("#/")
+    ):
         target = root
         for part in node["$ref"][2:].split("/"):
             target = target.get(part, {})
@@ -138,18 +141,27 @@ def retype_yaml_numbers(config, schema):
             return value
         if isinstance(value, dict):
             for k in list(value):
-                value[k] = walk(value[k], _child(node, schema, "object", k), f"{where}.{k}" if where else str(k))
+                value[k] = walk(
+                    value[k], _child(node, schema, "object", k), f"{where}.{k}" if where else str(k)
+                )
             return value
         if isinstance(value, list):
             item = _child(node, schema, "array")
             for i, v in enumerate(value):
                 value[i] = walk(v, item, f"{where}[{i}]")
             return value
-        if isinstance(value, float) and value.is_integer() and _types(node, schema) & {"integer", "number"} == {
-                "integer"}:  # `--config n_seeds=1e1`: Snakemake reads 10.0
+        if (
+            isinstance(value, float)
+            and value.is_integer()
+            and _types(node, schema) & {"integer", "number"} == {"integer"}
+        ):  # `--config n_seeds=1e1`: Snakemake reads 10.0
             changed.append(where)
             return int(value)
-        if isinstance(value, str) and value.strip().lower() in ("true", "false") and "boolean" in _types(node, schema):
+        if (
+            isinstance(value, str)
+            and value.strip().lower() in ("true", "false")
+            and "boolean" in _types(node, schema)
+        ):
             # `--config job_server=false`: Snakemake parses only Python's True/False, not YAML's true/false
             changed.append(where)
             return value.strip().lower() == "true"
@@ -193,11 +205,17 @@ def schema_error_message(error, what="configuration"):
     if validator == "additionalProperties" and isinstance(error.instance, dict):
         known = set(schema.get("properties") or {})
         patterns = [re.compile(p) for p in schema.get("patternProperties") or {}]
-        extra = [k for k in error.instance if k not in known and not any(p.search(str(k)) for p in patterns)]
+        extra = [
+            k
+            for k in error.instance
+            if k not in known and not any(p.search(str(k)) for p in patterns)
+        ]
         if extra and known:
             key = _key_path([*parts, extra[0]])
-            return (f"{what}: unknown key {key!r} (value {_short(error.instance[extra[0]])}): {error.message}; "
-                    f"expected one of the keys {sorted(known)}")
+            return (
+                f"{what}: unknown key {key!r} (value {_short(error.instance[extra[0]])}): {error.message}; "
+                f"expected one of the keys {sorted(known)}"
+            )
     where = f"key {_key_path(parts)!r}" if parts else "top level"
     if "propertyNames" in error.schema_path:
         where = f"a name under {where}"

@@ -42,14 +42,18 @@ def read_checksums(sums_path):
     """``{absolute path: hex digest}`` from a ``sha256sum``-style list (paths relative to the list's folder)."""
     sums_path = Path(sums_path)
     if not sums_path.is_file():
-        raise DataFileError(sums_path, "checksum list not found (expected lines '<sha256>  <file>')")
+        raise DataFileError(
+            sums_path, "checksum list not found (expected lines '<sha256>  <file>')"
+        )
     out = {}
     for k, line in enumerate(sums_path.read_text().splitlines(), 1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         parts = line.split(None, 1)
         if len(parts) != 2 or len(parts[0]) != 64:
-            raise DataFileError(sums_path, f"line {k}: expected '<64 hex digits>  <file>', found {line!r}")
+            raise DataFileError(
+                sums_path, f"line {k}: expected '<64 hex digits>  <file>', found {line!r}"
+            )
         name = parts[1].strip().lstrip("*")
         out[str((sums_path.parent / name).resolve())] = parts[0].lower()
     return out
@@ -70,10 +74,16 @@ def verify_checksum(path, checksums):
     if checksums == "sidecar":
         side = path.with_name(path.name + ".sha256")
         if not side.is_file():
-            raise DataFileError(path, f"no checksum file {side.name} beside it (written by the download rule)")
+            raise DataFileError(
+                path, f"no checksum file {side.name} beside it (written by the download rule)"
+            )
         expected = side.read_text().split()[0].lower()
         where = str(side)
-    elif isinstance(checksums, str) and len(checksums) == 64 and all(c in "0123456789abcdefABCDEF" for c in checksums):
+    elif (
+        isinstance(checksums, str)
+        and len(checksums) == 64
+        and all(c in "0123456789abcdefABCDEF" for c in checksums)
+    ):
         expected, where = checksums.lower(), "the configuration"
     else:
         table = read_checksums(checksums)
@@ -83,7 +93,9 @@ def verify_checksum(path, checksums):
         expected, where = table[key], str(checksums)
     actual = sha256_file(path)
     if actual != expected:
-        raise DataFileError(path, f"checksum mismatch: expected sha256 {expected} (from {where}), got {actual}")
+        raise DataFileError(
+            path, f"checksum mismatch: expected sha256 {expected} (from {where}), got {actual}"
+        )
 
 
 # ------------------------------------------------------------------------------------------------ feature sets
@@ -101,7 +113,9 @@ class FeatureSet:
     meta: dict = field(default_factory=dict)
 
 
-def check_features(X, Y, source, n_features=None, n_angles=None, names=("X", "Y"), rows=None, y_column_offset=0):
+def check_features(
+    X, Y, source, n_features=None, n_angles=None, names=("X", "Y"), rows=None, y_column_offset=0
+):
     """Raise InputError naming ``source`` unless X and Y are finite 2-D arrays with matching rows.
 
     The error for a non-finite value gives its row and column in the file when X and Y are a selection of it:
@@ -111,7 +125,9 @@ def check_features(X, Y, source, n_features=None, n_angles=None, names=("X", "Y"
     X = np.asarray(X)
     Y = np.asarray(Y)
     if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
-        raise InputError(f"{source}: X and Y must be 2-D with the same number of rows; got {X.shape} and {Y.shape}")
+        raise InputError(
+            f"{source}: X and Y must be 2-D with the same number of rows; got {X.shape} and {Y.shape}"
+        )
     if n_features is not None and X.shape[1] != n_features:
         raise InputError(f"{source}: X has {X.shape[1]} columns; expected {n_features}")
     if n_angles is not None and Y.shape[1] != n_angles:
@@ -166,7 +182,11 @@ def step_frames(trial_frames, frame_step):
     authors' group's files hold (resources/paper-features/README.md, "alignment"); frames dropped by
     ``skip_frames`` stay dropped.
     """
-    if isinstance(frame_step, bool) or not isinstance(frame_step, (int, np.integer)) or frame_step < 1:
+    if (
+        isinstance(frame_step, bool)
+        or not isinstance(frame_step, (int, np.integer))
+        or frame_step < 1
+    ):
         raise InputError(f"frame_step must be an integer >= 1; got {frame_step!r}")
     return np.flatnonzero(np.asarray(trial_frames, dtype=int) % int(frame_step) == 0)
 
@@ -175,8 +195,14 @@ def frame_protocol(frame_selection, frame_step, n_frames, frame_time=None):
     """One sentence naming how a data set's frames were chosen (stored with the features; used in tables)."""
     rate = ""
     if frame_time:
-        rate = f" of the {1.0 / frame_time:.0f} fps trials ({1.0 / (frame_time * frame_step):.0f} fps)"
-    step = f"one frame in {frame_step}{rate}, " if frame_step > 1 else (f"all frames{rate}, " if rate else "")
+        rate = (
+            f" of the {1.0 / frame_time:.0f} fps trials ({1.0 / (frame_time * frame_step):.0f} fps)"
+        )
+    step = (
+        f"one frame in {frame_step}{rate}, "
+        if frame_step > 1
+        else (f"all frames{rate}, " if rate else "")
+    )
     if frame_selection == "first":
         return f"{step}trials concatenated in order, first {n_frames} frames"
     return f"{step}trials concatenated in order, {n_frames} frames spread evenly over all"
@@ -215,7 +241,13 @@ def count_motion_frames(paths, skip_frames=1, frame_step=1):
 
 
 def load_feature_mat(
-    path, n_frames=600, frame_selection="first", drop_y_columns=3, x_key="X", y_key="Y", checksums=None,
+    path,
+    n_frames=600,
+    frame_selection="first",
+    drop_y_columns=3,
+    x_key="X",
+    y_key="Y",
+    checksums=None,
     angle_names=None,
 ):
     """Load a .mat file holding ``X`` and ``Y`` (one row per frame) as a :class:`FeatureSet`.
@@ -235,13 +267,20 @@ def load_feature_mat(
     for key in (x_key, y_key):
         if key not in m:
             have = sorted(k for k in m if not k.startswith("__"))
-            raise DataFileError(path, f"has no variable {key!r} (variables: {have}); expected {x_key!r} and {y_key!r}")
+            raise DataFileError(
+                path,
+                f"has no variable {key!r} (variables: {have}); expected {x_key!r} and {y_key!r}",
+            )
     X = np.asarray(m[x_key], dtype=float)
     Y = np.asarray(m[y_key], dtype=float)
     if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
-        raise DataFileError(path, f"{x_key} {X.shape} and {y_key} {Y.shape} must be 2-D with equal rows")
+        raise DataFileError(
+            path, f"{x_key} {X.shape} and {y_key} {Y.shape} must be 2-D with equal rows"
+        )
     if not 0 <= drop_y_columns < Y.shape[1]:
-        raise InputError(f"{path}: drop_y_columns={drop_y_columns} but {y_key} has {Y.shape[1]} columns")
+        raise InputError(
+            f"{path}: drop_y_columns={drop_y_columns} but {y_key} has {Y.shape[1]} columns"
+        )
     Y = Y[:, drop_y_columns:]
     idx = select_frames(X.shape[0], n_frames, frame_selection, str(path))
     X, Y = X[idx], Y[idx]
@@ -250,7 +289,9 @@ def load_feature_mat(
         angle_names = [f"angle{k + 1:02d}" for k in range(Y.shape[1])]
     elif len(angle_names) != Y.shape[1]:
         raise InputError(f"{path}: {len(angle_names)} angle_names for {Y.shape[1]} pose columns")
-    return FeatureSet(X, Y, idx, list(angle_names), {"files": [str(path)], "sha256": [sha256_file(path)]})
+    return FeatureSet(
+        X, Y, idx, list(angle_names), {"files": [str(path)], "sha256": [sha256_file(path)]}
+    )
 
 
 def save_features(path, fs):
@@ -276,17 +317,31 @@ def load_features(path):
     with np.load(path, allow_pickle=False) as z:
         for key in ("X", "Y", "frames", "angle_names"):
             if key not in z:
-                raise DataFileError(path, f"has no array {key!r}; expected X, Y, frames, angle_names")
+                raise DataFileError(
+                    path, f"has no array {key!r}; expected X, Y, frames, angle_names"
+                )
         d = {k: z[k] for k in z.files}
     check_features(d["X"], d["Y"], str(path))
     meta = {k: v for k, v in d.items() if k not in ("X", "Y", "frames", "angle_names")}
     return FeatureSet(d["X"], d["Y"], d["frames"], [str(a) for a in d["angle_names"]], meta)
 
 
-def build_mat_features(mat_path, out_path, n_frames=600, frame_selection="first", drop_y_columns=3,
-                       x_key="X", y_key="Y", checksums=None, n_features=None, meta=None):
+def build_mat_features(
+    mat_path,
+    out_path,
+    n_frames=600,
+    frame_selection="first",
+    drop_y_columns=3,
+    x_key="X",
+    y_key="Y",
+    checksums=None,
+    n_features=None,
+    meta=None,
+):
     """Load a feature .mat (verified) and write it as a features ``.npz``. Returns the FeatureSet."""
-    fs = load_feature_mat(mat_path, n_frames, frame_selection, drop_y_columns, x_key, y_key, checksums)
+    fs = load_feature_mat(
+        mat_path, n_frames, frame_selection, drop_y_columns, x_key, y_key, checksums
+    )
     check_features(fs.X, fs.Y, str(mat_path), n_features=n_features)
     fs.meta.update(meta or {})
     fs.meta.setdefault("heading_column", 2)
@@ -303,9 +358,20 @@ def _heading_column(angle_names, pose_joints):
     return angle_names.index(name) if name in angle_names else -1
 
 
-def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skeleton_kind=None, joint_map=None,
-                   drop_first_frame=True, asf=None, checksums=None, skip_frames=None, frame_step=1,
-                   fewer_frames="error"):
+def prepare_motion(
+    paths,
+    out_path,
+    n_frames=600,
+    frame_selection="spread",
+    skeleton_kind=None,
+    joint_map=None,
+    drop_first_frame=True,
+    asf=None,
+    checksums=None,
+    skip_frames=None,
+    frame_step=1,
+    fewer_frames="error",
+):
     """Parse and concatenate trials, pick ``n_frames`` frames and save positions and poses to ``out_path``.
 
     Frames: ``skip_frames`` leading frames of every trial are dropped, then only the frames whose index in their
@@ -327,8 +393,14 @@ def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skel
         verify_checksum(p, checksums)
     if asf is not None:
         verify_checksum(asf, checksums)
-    motion = load_motion(paths, skeleton_kind=skeleton_kind, joint_map=joint_map,
-                         drop_first_frame=drop_first_frame, asf=asf, skip_frames=skip_frames)
+    motion = load_motion(
+        paths,
+        skeleton_kind=skeleton_kind,
+        joint_map=joint_map,
+        drop_first_frame=drop_first_frame,
+        asf=asf,
+        skip_frames=skip_frames,
+    )
     src = ", ".join(str(p) for p in paths)
     motion = motion.take(step_frames(motion.trial_frames, frame_step))
     idx = select_frames(motion.n_frames, n_frames, frame_selection, src, fewer=fewer_frames)
@@ -337,16 +409,27 @@ def prepare_motion(paths, out_path, n_frames=600, frame_selection="spread", skel
     with atomic_path(out_path) as tmp:
         np.savez(
             tmp,
-            positions=sel.positions, parents=sel.parents, joint_names=np.array(sel.joint_names, dtype=str),
-            angles=sel.angles, angle_names=np.array(sel.angle_names, dtype=str), frames=sel.source_frames,
-            trial_ids=np.array(sel.trial_ids, dtype=str), trial_index=sel.trial_index,
-            trial_frames=sel.trial_frames, frame_time=sel.frame_time, skeleton_kind=sel.skeleton_kind,
+            positions=sel.positions,
+            parents=sel.parents,
+            joint_names=np.array(sel.joint_names, dtype=str),
+            angles=sel.angles,
+            angle_names=np.array(sel.angle_names, dtype=str),
+            frames=sel.source_frames,
+            trial_ids=np.array(sel.trial_ids, dtype=str),
+            trial_index=sel.trial_index,
+            trial_frames=sel.trial_frames,
+            frame_time=sel.frame_time,
+            skeleton_kind=sel.skeleton_kind,
             pose_joints=np.array(sel.pose_joints, dtype=str),
             heading_column=_heading_column(sel.angle_names, sel.pose_joints),
             files=np.array([str(p) for p in paths], dtype=str),
             sha256=np.array([sha256_file(p) for p in paths], dtype=str),
-            frame_step=int(frame_step), frame_selection=str(frame_selection), n_frames_requested=int(n_frames),
-            frame_protocol=frame_protocol(frame_selection, int(frame_step), int(n_frames), sel.frame_time),
+            frame_step=int(frame_step),
+            frame_selection=str(frame_selection),
+            n_frames_requested=int(n_frames),
+            frame_protocol=frame_protocol(
+                frame_selection, int(frame_step), int(n_frames), sel.frame_time
+            ),
         )
     return sel
 
@@ -366,8 +449,19 @@ def _descriptors(positions, parents, joint_names, render, n_points, seed):
     return masks, silhouette_descriptors(masks, n_points=n_points, seed=seed)
 
 
-def learn_codebook_from_trials(paths, out_path, frames_per_trial=60, n_centres=100, render=None, n_points=200,
-                               seed=0, drop_first_frame=True, checksums=None, asf=None, skip_frames=None):
+def learn_codebook_from_trials(
+    paths,
+    out_path,
+    frames_per_trial=60,
+    n_centres=100,
+    render=None,
+    n_points=200,
+    seed=0,
+    drop_first_frame=True,
+    checksums=None,
+    asf=None,
+    skip_frames=None,
+):
     """Learn the shape-context codebook from the codebook trials only and save it (``centres``, ``trial_ids``).
 
     From each trial, ``frames_per_trial`` frames spread evenly over its usable frames are rendered; the shape
@@ -379,25 +473,51 @@ def learn_codebook_from_trials(paths, out_path, frames_per_trial=60, n_centres=1
 
     paths = [Path(p) for p in paths]
     if not paths:
-        raise InputError("codebook: no trial files given (expected codebook.files in the configuration)")
+        raise InputError(
+            "codebook: no trial files given (expected codebook.files in the configuration)"
+        )
     descs = []
     for p in paths:
         verify_checksum(p, checksums)
         m = load_motion([p], drop_first_frame=drop_first_frame, asf=asf, skip_frames=skip_frames)
         m = m.take(select_frames(m.n_frames, frames_per_trial, "spread", str(p)))
-        _, d = _descriptors(m.positions, m.parents, m.joint_names, render, n_points, derive_seed("codebook", p.stem, seed))
+        _, d = _descriptors(
+            m.positions,
+            m.parents,
+            m.joint_names,
+            render,
+            n_points,
+            derive_seed("codebook", p.stem, seed),
+        )
         descs.extend(d)
     centres = np.asarray(learn_codebook(descs, n_centres=n_centres, seed=seed), dtype=float)
     if not np.all(np.isfinite(centres)):
         raise InputError(f"codebook learned from {len(paths)} trials has non-finite centres")
     with atomic_path(out_path) as tmp:
-        np.savez(tmp, centres=centres, trial_ids=np.array([p.stem for p in paths], dtype=str),
-                 frames_per_trial=frames_per_trial, n_points=n_points, seed=seed)
+        np.savez(
+            tmp,
+            centres=centres,
+            trial_ids=np.array([p.stem for p in paths], dtype=str),
+            frames_per_trial=frames_per_trial,
+            n_points=n_points,
+            seed=seed,
+        )
     return centres
 
 
-def compute_mocap_features(motion_path, codebook_path, out_path, preview_path=None, render=None, n_points=200,
-                           soft=True, seed=0, name="", meta=None, preview_frames=16):
+def compute_mocap_features(
+    motion_path,
+    codebook_path,
+    out_path,
+    preview_path=None,
+    render=None,
+    n_points=200,
+    soft=True,
+    seed=0,
+    name="",
+    meta=None,
+    preview_frames=16,
+):
     """Render the selected frames of a prepared motion, describe and encode them, and save the features.
 
     Writes ``out_path`` (X = codebook histograms (F, n_centres), Y = the 57 angles, frames, angle_names, trial
@@ -417,14 +537,32 @@ def compute_mocap_features(motion_path, codebook_path, out_path, preview_path=No
             raise DataFileError(codebook_path, "has no array 'centres'")
         codebook = z["centres"]
     joint_names = [str(j) for j in mo["joint_names"]]
-    masks, descs = _descriptors(mo["positions"], mo["parents"], joint_names, render, n_points,
-                                derive_seed("features", name, seed))
+    masks, descs = _descriptors(
+        mo["positions"],
+        mo["parents"],
+        joint_names,
+        render,
+        n_points,
+        derive_seed("features", name, seed),
+    )
     X = np.asarray(histogram_features(descs, codebook, soft=soft), dtype=float)
     Y = mo["angles"]
     check_features(X, Y, f"features of {motion_path}", n_features=codebook.shape[0])
-    keep = ("trial_ids", "trial_index", "trial_frames", "frame_time", "skeleton_kind", "pose_joints",
-            "heading_column", "files", "sha256", "frame_step", "frame_selection", "n_frames_requested",
-            "frame_protocol")
+    keep = (
+        "trial_ids",
+        "trial_index",
+        "trial_frames",
+        "frame_time",
+        "skeleton_kind",
+        "pose_joints",
+        "heading_column",
+        "files",
+        "sha256",
+        "frame_step",
+        "frame_selection",
+        "n_frames_requested",
+        "frame_protocol",
+    )
     info = {k: mo[k] for k in keep if k in mo}
     info.update(meta or {})
     fs = FeatureSet(X, Y, mo["frames"], [str(a) for a in mo["angle_names"]], info)
@@ -450,14 +588,18 @@ def _fetch(url, dest, expected_sha256=None, check=None, timeout=60):
         raise DataFileError(dest, f"download from {url} failed: {e}") from None
     digest = hashlib.sha256(data).hexdigest()
     if expected_sha256 and digest != expected_sha256.lower():
-        raise DataFileError(dest, f"checksum mismatch for {url}: expected sha256 {expected_sha256}, got {digest}")
+        raise DataFileError(
+            dest, f"checksum mismatch for {url}: expected sha256 {expected_sha256}, got {digest}"
+        )
     with atomic_path(dest) as tmp:
         Path(tmp).write_bytes(data)
         if check is not None:
             try:
                 check(tmp)
             except DataFileError as e:
-                raise DataFileError(dest, f"downloaded from {url} but does not parse: {e}") from None
+                raise DataFileError(
+                    dest, f"downloaded from {url} but does not parse: {e}"
+                ) from None
     return digest
 
 

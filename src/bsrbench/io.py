@@ -27,7 +27,9 @@ def atomic_path(path):
     os.close(fd)
     try:
         yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the file the usual permissions
+        os.chmod(
+            tmp, 0o666 & ~_umask()
+        )  # mkstemp creates 0600; give the file the usual permissions
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -48,10 +50,14 @@ def read_npz(path, keys=None):
             names = f.files if keys is None else list(keys)
             missing = [k for k in names if k not in f.files]
             if missing:
-                raise DataFileError(path, f"missing array(s) {missing}; it has {sorted(f.files)}; delete it and "
-                                          "rerun to rebuild it")
+                raise DataFileError(
+                    path,
+                    f"missing array(s) {missing}; it has {sorted(f.files)}; delete it and "
+                    "rerun to rebuild it",
+                )
             return {k: f[k] for k in names}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise DataFileError(
-            path, f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it"
+            path,
+            f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it",
         ) from exc

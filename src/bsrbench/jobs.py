@@ -61,7 +61,9 @@ def cv(job):
         folds=p.folds,
     )
     write_json(job["output"]["json"], result)
-    print(f"{spec}: chose {result['best_params']} (CV error {result['best_score']})", file=sys.stderr)
+    print(
+        f"{spec}: chose {result['best_params']} (CV error {result['best_score']})", file=sys.stderr
+    )
 
 
 def fit_chain(job):
@@ -71,11 +73,18 @@ def fit_chain(job):
     w, p, inp = _ns(job["wildcards"]), _ns(job["params"]), job["input"]
     spec = JobSpec.from_wildcards(w, p)
     params, _ = _params(inp, p)
-    arrays = run_chain(spec, load_features(inp["features"]), estimator=p.estimator, params=params,
-                       chain=int(w.chain))
+    arrays = run_chain(
+        spec,
+        load_features(inp["features"]),
+        estimator=p.estimator,
+        params=params,
+        chain=int(w.chain),
+    )
     write_arrays(job["output"]["chain"], arrays)
-    print(f"{spec}: chain {w.chain} (seed {int(arrays['seed'])}), fit {float(arrays['fit_seconds']):.2f} s",
-          file=sys.stderr)
+    print(
+        f"{spec}: chain {w.chain} (seed {int(arrays['seed'])}), fit {float(arrays['fit_seconds']):.2f} s",
+        file=sys.stderr,
+    )
 
 
 def pool(job):
@@ -87,9 +96,19 @@ def pool(job):
     spec = JobSpec.from_wildcards(w, p)
     params, cv_seconds = _params(inp, p)
     chains = [read_npz(path) for path in inp["chains"]]
-    row, arrays = pool_chains(spec, load_features(inp["features"]), chains, estimator=p.estimator,
-                              params=params, cv_mode=p.cv_mode, cv_seconds=cv_seconds)
+    row, arrays = pool_chains(
+        spec,
+        load_features(inp["features"]),
+        chains,
+        estimator=p.estimator,
+        params=params,
+        cv_mode=p.cv_mode,
+        cv_seconds=cv_seconds,
+    )
     write_arrays(out["predictions"], arrays)
     write_json(out["row"], row)
-    print(f"{spec}: {len(chains)} chains, error {row['error']:.3f} deg, R-hat(log-lik) "
-          f"{row.get('r_hat_log_likelihood')}", file=sys.stderr)
+    print(
+        f"{spec}: {len(chains)} chains, error {row['error']:.3f} deg, R-hat(log-lik) "
+        f"{row.get('r_hat_log_likelihood')}",
+        file=sys.stderr,
+    )

@@ -139,7 +139,12 @@ def job_params(params):
     def job(wildcards, input, output):
         values = {k: (v(wildcards) if callable(v) else v) for k, v in params.items()}
         return json.dumps(
-            {"input": _named(input), "output": _named(output), "params": values, "wildcards": _named(wildcards)},
+            {
+                "input": _named(input),
+                "output": _named(output),
+                "params": values,
+                "wildcards": _named(wildcards),
+            },
             sort_keys=True,
         )
 
@@ -201,7 +206,10 @@ def run(target, job, *, use_server=True):
         try:
             status, detail = _run_remote(target, job)
         except (OSError, EOFError, TimeoutError) as exc:
-            print(f"bsrbench.jobserver: server not available ({exc}); running in-process", file=sys.stderr)
+            print(
+                f"bsrbench.jobserver: server not available ({exc}); running in-process",
+                file=sys.stderr,
+            )
         else:
             if status == "ok":
                 return
@@ -244,7 +252,9 @@ def _start_server(path):
             pass
         env = dict(os.environ)
         for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-            env[var] = "1"  # no BLAS thread pools in the process that forks; children may raise them
+            env[var] = (
+                "1"  # no BLAS thread pools in the process that forks; children may raise them
+            )
         env["NUMBA_NUM_THREADS"] = str(os.cpu_count() or 1)
         subprocess.Popen(
             [sys.executable, "-m", "bsrbench.jobserver", str(path)],
@@ -260,7 +270,9 @@ def _start_server(path):
                 return _connect(path)
             except OSError:
                 time.sleep(0.05)
-        raise TimeoutError(f"job server at {path} did not start within {START_TIMEOUT:.0f} s (log: {path}.log)")
+        raise TimeoutError(
+            f"job server at {path} did not start within {START_TIMEOUT:.0f} s (log: {path}.log)"
+        )
     finally:
         lock.close()
 
@@ -274,7 +286,16 @@ def _run_remote(target, job):
         except OSError:
             sock = _start_server(path)
         with sock:
-            _send(sock, {"target": target, "job": job, "fingerprint": fp, "cwd": os.getcwd(), "owner": _owner()})
+            _send(
+                sock,
+                {
+                    "target": target,
+                    "job": job,
+                    "fingerprint": fp,
+                    "cwd": os.getcwd(),
+                    "owner": _owner(),
+                },
+            )
             status, detail = _recv(sock)
         if status != "stale":
             return status, detail
@@ -319,7 +340,7 @@ def shutdown(path=None, timeout=30.0):
         while Path(f"{path}.lock").exists() and time.monotonic() < deadline:
             time.sleep(0.05)
         return True
-    except Exception as exc:  # noqa: BLE001 - a hook must not fail the run; the idle timeout remains
+    except Exception as exc:
         print(f"bsrbench.jobserver: could not stop the server at {path}: {exc}", file=sys.stderr)
         return False
 
@@ -387,14 +408,14 @@ def _worker(request, result_w):
         sys.stderr = os.fdopen(2, "w", buffering=1, closefd=False)
         _limit_threads(job.get("threads", 1))
         _resolve(request["target"])(job)
-    except BaseException:  # noqa: BLE001 - everything goes back to the client
+    except BaseException:
         detail = traceback.format_exc()
         status = "error"
         print(detail, file=sys.stderr)
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except Exception:  # noqa: BLE001
+    except Exception:
         pass
     os.write(result_w, pickle.dumps((status, detail)))
     os._exit(0)
@@ -425,7 +446,7 @@ def _supervise(conn, request):
     _, status = os.waitpid(pid, 0)
     try:
         result = pickle.loads(b"".join(chunks))
-    except Exception:  # noqa: BLE001 - the worker died without a result
+    except Exception:
         result = ("error", f"worker exited with status {status} without a result")
     try:
         _send(conn, result)
@@ -512,12 +533,31 @@ def _warm_numba():
 
         rng = np.random.default_rng(0)
         X, Y = rng.standard_normal((12, 3)), rng.standard_normal((12, 2))
-        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0).fit(X, Y).predict(X[:2])
-        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, w_update="mh", atom_update="single",
-                   random_state=0).fit(X, Y)
-        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, noise="separate", w_prior_mean=-1.0,
-                   prediction="paper-text", random_state=0).fit(X, Y).predict(X[:2])
-    except Exception:  # noqa: BLE001 - warming is an optimization only
+        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0).fit(
+            X, Y
+        ).predict(X[:2])
+        BayesianSR(
+            n_atoms=2,
+            n_neighbors=1,
+            n_iter=2,
+            n_burn_in=1,
+            thin=1,
+            w_update="mh",
+            atom_update="single",
+            random_state=0,
+        ).fit(X, Y)
+        BayesianSR(
+            n_atoms=2,
+            n_neighbors=1,
+            n_iter=2,
+            n_burn_in=1,
+            thin=1,
+            noise="separate",
+            w_prior_mean=-1.0,
+            prediction="paper-text",
+            random_state=0,
+        ).fit(X, Y).predict(X[:2])
+    except Exception:
         traceback.print_exc()
 
 

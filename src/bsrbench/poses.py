@@ -20,7 +20,9 @@ class HeadingTransform:
     def forward(self, Y):
         Y = np.asarray(Y, dtype=float)
         if Y.ndim != 2 or not 0 <= self.column < Y.shape[1]:
-            raise InputError(f"HeadingTransform: column={self.column} is outside Y with shape {Y.shape}")
+            raise InputError(
+                f"HeadingTransform: column={self.column} is outside Y with shape {Y.shape}"
+            )
         a = np.deg2rad(Y[:, self.column])
         rest = np.delete(Y, self.column, axis=1)
         return np.column_stack([rest, self.scale * np.sin(a), self.scale * np.cos(a)])
@@ -28,7 +30,9 @@ class HeadingTransform:
     def inverse(self, Z):
         Z = np.asarray(Z, dtype=float)
         if Z.ndim != 2 or Z.shape[1] < 3:
-            raise InputError(f"HeadingTransform.inverse: expected a 2-D array with >= 3 columns, got {Z.shape}")
+            raise InputError(
+                f"HeadingTransform.inverse: expected a 2-D array with >= 3 columns, got {Z.shape}"
+            )
         heading = np.rad2deg(np.arctan2(Z[:, -2], Z[:, -1]))
         rest = Z[:, :-2]
         return np.insert(rest, self.column, heading, axis=1)

@@ -49,11 +49,15 @@ def load_estimator_class(path):
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise InputError(f"estimator {path!r}: cannot import module {module_name!r} ({exc})") from exc
+        raise InputError(
+            f"estimator {path!r}: cannot import module {module_name!r} ({exc})"
+        ) from exc
     try:
         return getattr(module, class_name)
     except AttributeError:
-        raise InputError(f"estimator {path!r}: module {module_name!r} has no attribute {class_name!r}") from None
+        raise InputError(
+            f"estimator {path!r}: module {module_name!r} has no attribute {class_name!r}"
+        ) from None
 
 
 def make_estimator(path, params, random_state=None):
@@ -116,11 +120,16 @@ def check_estimator_params(path, params, n_samples=None):
                 check(n_samples=n_samples)
             else:
                 check()
-        elif callable(getattr(est, "_validate_params", None)) and hasattr(est, "_parameter_constraints"):
+        elif callable(getattr(est, "_validate_params", None)) and hasattr(
+            est, "_parameter_constraints"
+        ):
             est._validate_params()
     except InputError:
         raise
-    except (ValueError, TypeError) as exc:  # scikit-learn's InvalidParameterError, or a constructor's own check
+    except (
+        ValueError,
+        TypeError,
+    ) as exc:  # scikit-learn's InvalidParameterError, or a constructor's own check
         raise InputError(str(exc).splitlines()[0] if str(exc) else repr(exc)) from None
 
 
@@ -148,7 +157,9 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
     """
     for name in run:
         if name not in methods:
-            raise InputError(f"config key 'run': unknown method {name!r}; defined under 'methods': {sorted(methods)}")
+            raise InputError(
+                f"config key 'run': unknown method {name!r}; defined under 'methods': {sorted(methods)}"
+            )
         setting = methods[name] or {}
         path = setting.get("estimator")
         try:
@@ -170,7 +181,9 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
         ]
         for key, values in parts:
             if not isinstance(values, dict):
-                raise InputError(f"config key '{key}': expected a mapping {{parameter: value}}; got {values!r}")
+                raise InputError(
+                    f"config key '{key}': expected a mapping {{parameter: value}}; got {values!r}"
+                )
             if accepted is None:
                 continue
             for p, v in values.items():
@@ -181,7 +194,9 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
                     )
         for p, v in (grid or {}).items():
             if not isinstance(v, (list, tuple)) or not v:
-                raise InputError(f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values")
+                raise InputError(
+                    f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values"
+                )
         _check_method_values(name, setting, path, grid or {}, where_grid, n_train=n_train, cv=cv)
 
 
@@ -207,7 +222,11 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
         try:
             check_estimator_params(path, {**params, **cv_params})
         except InputError as exc:
-            fail(f"methods.{name}.cv_params", exc, f"cv_params {shown(cv_params)} over params {shown(params)}")
+            fail(
+                f"methods.{name}.cv_params",
+                exc,
+                f"cv_params {shown(cv_params)} over params {shown(params)}",
+            )
     for point in points:
         if point:
             try:
@@ -222,7 +241,11 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
             check_estimator_params(path, {**params, **point}, n_samples=n_min)
         except InputError as exc:
             key = where_grid if point else f"methods.{name}.params"
-            what = f"grid point {shown(point)} over params {shown(params)}" if point else f"params {shown(params)}"
+            what = (
+                f"grid point {shown(point)} over params {shown(params)}"
+                if point
+                else f"params {shown(params)}"
+            )
             fail(key, exc, f"{what}, fitted on the smallest n_train N = {n_min}")
     if not cv_runs:
         return
@@ -238,8 +261,12 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
             check_estimator_params(path, {**params, **cv_params, **point}, n_samples=n_fold)
         except InputError as exc:
             key = f"methods.{name}.cv_params" if cv_params and not point else where_grid
-            fail(key, exc, f"the CV fits of grid point {shown(point)} over params {shown({**params, **cv_params})} "
-                           f"on training folds of {n_fold} frames (N = {n_min}, cv.folds = {folds})")
+            fail(
+                key,
+                exc,
+                f"the CV fits of grid point {shown(point)} over params {shown({**params, **cv_params})} "
+                f"on training folds of {n_fold} frames (N = {n_min}, cv.folds = {folds})",
+            )
 
 
 def load_features(path):
@@ -252,7 +279,8 @@ def load_features(path):
             data = {k: f[k] for k in f.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise DataFileError(
-            path, f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it"
+            path,
+            f"cannot read as .npz ({type(exc).__name__}: {exc}); delete it and rerun to rebuild it",
         ) from exc
     for key in ("X", "Y"):
         if key not in data:
@@ -260,7 +288,9 @@ def load_features(path):
     X = np.asarray(data["X"], dtype=float)
     Y = np.asarray(data["Y"], dtype=float)
     if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
-        raise DataFileError(path, f"X and Y must be 2-D with the same number of rows; got {X.shape} and {Y.shape}")
+        raise DataFileError(
+            path, f"X and Y must be 2-D with the same number of rows; got {X.shape} and {Y.shape}"
+        )
     for key, a in (("X", X), ("Y", Y)):
         if not np.all(np.isfinite(a)):
             row = int(np.argwhere(~np.isfinite(a))[0][0])
@@ -332,7 +362,9 @@ def _cross_trial_split(n_frames, n_train, rng, min_test, trials):
         )
     trials = np.asarray(trials)
     if trials.shape != (n_frames,):
-        raise InputError(f"cross_trial: trial_index has shape {trials.shape}; expected ({n_frames},)")
+        raise InputError(
+            f"cross_trial: trial_index has shape {trials.shape}; expected ({n_frames},)"
+        )
     ids = np.unique(trials)
     if ids.size < 2:
         raise InputError(f"cross_trial: the features hold {ids.size} trial; at least 2 are needed")
@@ -477,7 +509,9 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
     X, Y = features["X"], features["Y"]
     train, _ = spec.split(X.shape[0], features.get("trials"))
     grid = {k: list(v) for k, v in (grid or {}).items()}
-    est = make_estimator(estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed)
+    est = make_estimator(
+        estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed
+    )
     t0 = time.perf_counter()
     if grid:
         res = tune(
@@ -487,7 +521,9 @@ def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_param
             Y[train],
             cv=int(folds),
             random_state=spec.method_seed,
-            pose_transform=get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2)),
+            pose_transform=get_pose_transform(
+                spec.pose_transform, column=features.get("heading_column", 2)
+            ),
         )
         best, score, n_fits = dict(res.best_params), res.best_score, res.n_fits
         table = res.cv_results.drop(columns=["params"], errors="ignore").to_dict(orient="records")
@@ -554,16 +590,40 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         Z_mean, Z_std = est.predict(X[test]), None
     predict_seconds = time.perf_counter() - t0
     row, arrays = _score(
-        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
-        train=train, test=test, Y_true=Y[test], Z_mean=Z_mean, Z_std=Z_std, fit_seconds=fit_seconds,
+        spec,
+        estimator=estimator,
+        params=params,
+        cv_mode=cv_mode,
+        cv_seconds=cv_seconds,
+        transform=transform,
+        train=train,
+        test=test,
+        Y_true=Y[test],
+        Z_mean=Z_mean,
+        Z_std=Z_std,
+        fit_seconds=fit_seconds,
         predict_seconds=predict_seconds,
     )
     arrays.update(trace_arrays(est))
     return row, arrays
 
 
-def _score(spec, *, estimator, params, cv_mode, cv_seconds, transform, train, test, Y_true, Z_mean, Z_std,
-           fit_seconds, predict_seconds):
+def _score(
+    spec,
+    *,
+    estimator,
+    params,
+    cv_mode,
+    cv_seconds,
+    transform,
+    train,
+    test,
+    Y_true,
+    Z_mean,
+    Z_std,
+    fit_seconds,
+    predict_seconds,
+):
     """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
     transformed pose space."""
     Z_mean = np.asarray(Z_mean, dtype=float)
@@ -599,7 +659,9 @@ def _score(spec, *, estimator, params, cv_mode, cv_seconds, transform, train, te
     if Z_std is not None:
         Y_std = inverse_std(transform, Z_mean, np.asarray(Z_std, dtype=float))
         for level in COVERAGE_LEVELS:
-            row[f"coverage_{int(round(level * 100))}"] = interval_coverage(Y_true, Y_pred, Y_std, level=level)
+            row[f"coverage_{int(round(level * 100))}"] = interval_coverage(
+                Y_true, Y_pred, Y_std, level=level
+            )
         row["coverage"] = row["coverage_90"]
         arrays["y_std"] = Y_std
     else:
@@ -659,13 +721,19 @@ def run_chain(spec, features, *, estimator, params, chain):
                 f"({test.size}, n_samples, n_outputs)"
             )
         out["draw_error"] = np.array(
-            [mean_angle_error(Y[test], transform.inverse(draws[:, i, :])) for i in range(draws.shape[1])]
+            [
+                mean_angle_error(Y[test], transform.inverse(draws[:, i, :]))
+                for i in range(draws.shape[1])
+            ]
         )
     predict_seconds = time.perf_counter() - t0
     out.update(trace_arrays(est))
     out.update(
-        chain=np.int64(chain), seed=np.int64(seed), n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
-        fit_seconds=np.float64(fit_seconds), predict_seconds=np.float64(predict_seconds),
+        chain=np.int64(chain),
+        seed=np.int64(seed),
+        n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
+        fit_seconds=np.float64(fit_seconds),
+        predict_seconds=np.float64(predict_seconds),
     )
     return out
 
@@ -681,7 +749,9 @@ def convergence_summary(chains):
     """
     from .models.diagnostics import chain_summary  # imported here: only pooling jobs need ArviZ
 
-    out = {f"{stat}_{name}": math.nan for name in CONVERGENCE_SERIES for stat in ("r_hat", "ess_bulk")}
+    out = {
+        f"{stat}_{name}": math.nan for name in CONVERGENCE_SERIES for stat in ("r_hat", "ess_bulk")
+    }
     if len(chains) < 2:
         return out
     burn_in = min(int(c.get("n_burn_in", 0)) for c in chains)
@@ -691,7 +761,10 @@ def convergence_summary(chains):
             arrs = [np.asarray(c[f"trace_{name}"], dtype=float) for c in chains]
             if min(a.size for a in arrs) - burn_in >= 4:
                 series[name] = [a[burn_in:] for a in arrs]
-    if all("draw_error" in c for c in chains) and min(np.size(c["draw_error"]) for c in chains) >= 4:
+    if (
+        all("draw_error" in c for c in chains)
+        and min(np.size(c["draw_error"]) for c in chains) >= 4
+    ):
         series["test_error"] = [np.asarray(c["draw_error"], dtype=float) for c in chains]
     for name, arrs in series.items():
         s = chain_summary([{name: a} for a in arrs], burn_in=0, names=(name,))
@@ -715,7 +788,9 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
     train, test = spec.split(X.shape[0], features.get("trials"))
     for c in chains:
         if not (np.array_equal(c["train"], train) and np.array_equal(c["test"], test)):
-            raise InputError(f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)")
+            raise InputError(
+                f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)"
+            )
     transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
     means = np.stack([np.asarray(c["z_mean"], dtype=float) for c in chains])
     z_mean = means.mean(axis=0)
@@ -725,8 +800,17 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
         second = np.mean(variances + means**2, axis=0)
         z_std = np.sqrt(np.maximum(second - z_mean**2, 0.0))
     row, arrays = _score(
-        spec, estimator=estimator, params=params, cv_mode=cv_mode, cv_seconds=cv_seconds, transform=transform,
-        train=train, test=test, Y_true=Y[test], Z_mean=z_mean, Z_std=z_std,
+        spec,
+        estimator=estimator,
+        params=params,
+        cv_mode=cv_mode,
+        cv_seconds=cv_seconds,
+        transform=transform,
+        train=train,
+        test=test,
+        Y_true=Y[test],
+        Z_mean=z_mean,
+        Z_std=z_std,
         fit_seconds=float(sum(float(c["fit_seconds"]) for c in chains)),
         predict_seconds=float(sum(float(c["predict_seconds"]) for c in chains)),
     )
@@ -741,7 +825,9 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
             arrays[f"chain_{k}"] = np.stack([a[:n] for a in arrs])
     if all("draw_error" in c for c in chains):
         n = min(np.size(c["draw_error"]) for c in chains)
-        arrays["chain_draw_error"] = np.stack([np.asarray(c["draw_error"], dtype=float)[:n] for c in chains])
+        arrays["chain_draw_error"] = np.stack(
+            [np.asarray(c["draw_error"], dtype=float)[:n] for c in chains]
+        )
     arrays["n_burn_in"] = np.int64(min(int(c.get("n_burn_in", 0)) for c in chains))
     return row, arrays
 
@@ -777,5 +863,7 @@ def default_grid(path):
     if cls.__name__ in grid and isinstance(grid[cls.__name__], dict):
         grid = grid[cls.__name__]
     if not all(isinstance(v, (list, tuple)) for v in grid.values()):
-        raise InputError(f"{cls.__module__}.DEFAULT_GRID for {cls.__name__} is not a {{param: [values]}} dict")
+        raise InputError(
+            f"{cls.__module__}.DEFAULT_GRID for {cls.__name__} is not a {{param: [values]}} dict"
+        )
     return {k: list(v) for k, v in grid.items()}

@@ -57,7 +57,9 @@ def _normalise_grid(estimator, param_grid):
     elif isinstance(param_grid, (list, tuple)):
         grids = list(param_grid)
     else:
-        raise InputError(f"param_grid must be a dict or a list of dicts; got {type(param_grid).__name__}")
+        raise InputError(
+            f"param_grid must be a dict or a list of dicts; got {type(param_grid).__name__}"
+        )
     if not grids or all(isinstance(g, dict) and not g for g in grids):
         raise InputError("param_grid is empty: give at least one parameter with at least one value")
     valid = set(estimator.get_params(deep=True))
@@ -82,7 +84,9 @@ def _normalise_grid(estimator, param_grid):
     return out
 
 
-def _fit_and_score(estimator, fit_params, predict_settings, X, Y, Yfit, train, test, pose_transform):
+def _fit_and_score(
+    estimator, fit_params, predict_settings, X, Y, Yfit, train, test, pose_transform
+):
     """Fit once with ``fit_params``; score each predict-time setting. Returns (fit_time, [(err, t_pred)])."""
     # the fitted instance carries the first predict-time setting, so fit validates a value from the grid
     est = clone(estimator).set_params(**fit_params, **predict_settings[0])
@@ -135,7 +139,9 @@ def tune(estimator, param_grid, X, Y, *, cv=5, random_state=0, pose_transform=No
     if X.ndim != 2 or Y.ndim not in (1, 2):
         raise InputError(f"X must be 2-D and Y 1-D or 2-D; got X {X.shape}, Y {Y.shape}")
     if X.shape[0] != Y.shape[0]:
-        raise InputError(f"X and Y must have the same number of rows; got {X.shape[0]} and {Y.shape[0]}")
+        raise InputError(
+            f"X and Y must have the same number of rows; got {X.shape[0]} and {Y.shape[0]}"
+        )
     if isinstance(cv, bool) or not isinstance(cv, (int, np.integer)) or cv < 2:
         raise InputError(f"cv must be an integer >= 2 (number of folds); got {cv!r}")
     n = X.shape[0]

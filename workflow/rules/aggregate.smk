@@ -14,8 +14,8 @@ rule aggregate:
         f"{LOGS}/aggregate/aggregate.log",
     benchmark:
         f"{RESULTS}/benchmarks/aggregate/aggregate.tsv"
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
     script:
         "../scripts/aggregate.py"

@@ -10,7 +10,6 @@ from snakemake.utils import validate
 
 from bsrbench.cli_config import config_validation_error
 
-
 # a schema error as one line naming the key, its value and what was expected (bsrbench.cli_config), instead of
 # Snakemake's message dumping the whole schema and configuration
 try:
@@ -76,7 +75,9 @@ def _check_study_config():
                 f"config key 'report.subjective_methods': unknown method {m!r}; defined: {sorted(methods)}"
             )
     if not any(config["study_activities"].values()):
-        raise ValueError("config key 'study_activities': no activity to study (every source has an empty list)")
+        raise ValueError(
+            "config key 'study_activities': no activity to study (every source has an empty list)"
+        )
     for source, acts in config["study_activities"].items():
         known = _data_activities(source)
         if not config.get("datasets"):
@@ -96,7 +97,9 @@ def _check_study_config():
                     f"config key 'study_activities.{source}': unknown activity {a!r}; "
                     f"source {source!r} has {sorted(known)}"
                 )
-            if "cross_trial" in config["protocols"] and (not is_motion(source, a) or len(dataset(source, a)["files"]) < 2):
+            if "cross_trial" in config["protocols"] and (
+                not is_motion(source, a) or len(dataset(source, a)["files"]) < 2
+            ):
                 raise ValueError(
                     f"config key 'protocols': cross_trial needs a motion-capture data set of several trials; "
                     f"{source}/{a} is format {dataset(source, a)['format']!r} with "
@@ -113,7 +116,12 @@ def _check_study_config():
                     if n > limit:
                         SKIPPED_CELLS[(protocol, source, a, int(n))] = (
                             f"N = {n} skipped: the {known[a]} frames leave at most {max(known[a] - n, 0)} test "
-                            + "frames" + (f" (fewer after the gap of {config['gap']})" if protocol == "contiguous" else "")
+                            + "frames"
+                            + (
+                                f" (fewer after the gap of {config['gap']})"
+                                if protocol == "contiguous"
+                                else ""
+                            )
                             + f", fewer than min_test = {config['min_test']}"
                         )
     pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
@@ -259,7 +267,9 @@ def cv_input(wildcards):
         return []
     seed = first_seed() if mode == "per_size" else wildcards.seed
     w = wildcards
-    return f"{RESULTS}/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
+    return (
+        f"{RESULTS}/cv/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{seed}.json"
+    )
 
 
 def method_grid(wildcards):
@@ -304,7 +314,9 @@ def table_targets():
     from bsrbench.reporting.tables import tables_with_rows
 
     return [
-        f"{REPORTS}/tables/table{t}_{s}.tex" for s in report_sources() for t in tables_with_rows(data_status(s))
+        f"{REPORTS}/tables/table{t}_{s}.tex"
+        for s in report_sources()
+        for t in tables_with_rows(data_status(s))
     ]
 
 
@@ -380,7 +392,9 @@ def trace_input(wildcards):
     s, a = study_pairs()[0]
     p = config["protocols"][0]
     n = largest_run_n(p, s, a)
-    return f"{RESULTS}/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed{first_seed()}.npz"
+    return (
+        f"{RESULTS}/fit/{p}/{s}/{a}/{config['report']['trace_method']}/n{n}/seed{first_seed()}.npz"
+    )
 
 
 def gxy_inputs(wildcards):
@@ -420,8 +434,17 @@ def data_status(source):
         if a is not None and a in studied:
             out[pa] = a
             continue
-        kind = "none" if a is None else "here" if row["available"] else "download" if row["command"] else "missing"
-        rank = ("none", "missing", "download", "here")  # several data sets may serve one paper activity
+        kind = (
+            "none"
+            if a is None
+            else "here" if row["available"] else "download" if row["command"] else "missing"
+        )
+        rank = (
+            "none",
+            "missing",
+            "download",
+            "here",
+        )  # several data sets may serve one paper activity
         if pa in out and rank.index(out[pa]["kind"]) >= rank.index(kind):
             continue
         out[pa] = {
@@ -438,7 +461,9 @@ def config_overrides():
     all but job_server, an execution setting like --cores (switching it reruns nothing, the report included; the
     SLURM profile sets it)."""
     return [
-        str(a) for a in workflow.config_settings.config_args or [] if str(a).partition("=")[0].strip() != "job_server"
+        str(a)
+        for a in workflow.config_settings.config_args or []
+        if str(a).partition("=")[0].strip() != "job_server"
     ]
 
 
@@ -469,7 +494,8 @@ def _check_report_is_current():
     """`snakemake --report` embeds the outputs as they are on disk, without checking that they are current, and
     Snakefiles get no flag saying that a report is being built: so, on that command line, refuse an aggregate
     table of another configuration (the one check that matters: the HTML report would show another study), and
-    an HTML file in another study's report folder (reports/{other}/, or the shared reports/ itself)."""
+    an HTML file in another study's report folder (reports/{other}/, or the shared reports/ itself).
+    """
     html = _report_arg(sys.argv)
     if html is None:
         return
@@ -494,7 +520,8 @@ def design_change_message():
     """When results/{study}/aggregate/results.csv exists but holds another design than the configured one (a
     method, size, seed, protocol or activity added or removed under the same study name): a message naming what
     changed and what to do; None otherwise, or when the table cannot be read (the aggregate rule rebuilds it, and
-    the report rules name the problem). The table's key columns are the record of the design it was built for."""
+    the report rules name the problem). The table's key columns are the record of the design it was built for.
+    """
     from bsrbench.reporting.tables import KEY_COLUMNS, design_changes
 
     aggregate = Path(f"{RESULTS}/aggregate/results.csv")
@@ -503,7 +530,9 @@ def design_change_message():
     import pandas as pd
 
     try:
-        missing, extra, differ = design_changes(pd.read_csv(aggregate, usecols=KEY_COLUMNS), study_design())
+        missing, extra, differ = design_changes(
+            pd.read_csv(aggregate, usecols=KEY_COLUMNS), study_design()
+        )
     except (OSError, UnicodeDecodeError, ValueError, TypeError):
         # unreadable or damaged (pandas' parser errors are ValueErrors): not a design change; the aggregate and
         # report rules handle it

@@ -163,7 +163,8 @@ def motion_params(wildcards):
 
 def data_frames(source, activity):
     """Frames the data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its BVH
-    trials give, counted from their headers; n_frames when that cannot be counted before the files exist."""
+    trials give, counted from their headers; n_frames when that cannot be counted before the files exist.
+    """
     from bsrbench.datasets import count_motion_frames
 
     d = dataset(source, activity)
@@ -181,12 +182,16 @@ def frame_protocol_text(source, activity):
 
     d = dataset(source, activity)
     if d["format"] not in MOTION_FORMATS:
-        return f"rows of {Path(d['files'][0]).name}, first {d['n_frames']}" if d["frame_selection"] == "first" else (
-            f"{d['n_frames']} rows of {Path(d['files'][0]).name} spread evenly"
+        return (
+            f"rows of {Path(d['files'][0]).name}, first {d['n_frames']}"
+            if d["frame_selection"] == "first"
+            else (f"{d['n_frames']} rows of {Path(d['files'][0]).name} spread evenly")
         )
     header = bvh_header(d["files"][0])
     frame_time = header[1] if header else None
-    text = frame_protocol(d["frame_selection"], int(d["frame_step"]), int(d["n_frames"]), frame_time)
+    text = frame_protocol(
+        d["frame_selection"], int(d["frame_step"]), int(d["n_frames"]), frame_time
+    )
     n = data_frames(source, activity)
     if n < int(d["n_frames"]):
         text += f" (the trials here give {n})"
@@ -217,7 +222,11 @@ def mat_params(wildcards):
 
 def features_meta(wildcards):
     d = dataset(wildcards.source, wildcards.activity)
-    return {"source": d["source"], "activity": d["activity"], "paper_activity": d["paper_activity"] or ""}
+    return {
+        "source": d["source"],
+        "activity": d["activity"],
+        "paper_activity": d["paper_activity"] or "",
+    }
 
 
 def render_params():
@@ -248,25 +257,46 @@ def data_availability():
         for s in sources:
             match = [a for a in config["datasets"][s] if dataset(s, a)["paper_activity"] == pa]
             if not match:
-                rows.append({
-                    "table": table, "paper_activity": pa, "source": s, "activity": None, "enabled": False,
-                    "available": False, "missing": [], "target": None, "command": None,
-                })
+                rows.append(
+                    {
+                        "table": table,
+                        "paper_activity": pa,
+                        "source": s,
+                        "activity": None,
+                        "enabled": False,
+                        "available": False,
+                        "missing": [],
+                        "target": None,
+                        "command": None,
+                    }
+                )
                 continue
             for a in match:
                 d = dataset(s, a)
                 files = list(d["files"]) + ([d["asf"]] if d["format"] == "amc" and d["asf"] else [])
                 missing = [f for f in files if not Path(f).is_file()]
                 downloadable = bool(d["cmu_trials"])
-                rows.append({
-                    "table": table, "paper_activity": pa, "source": s, "activity": a, "enabled": d["enabled"],
-                    "available": not missing, "missing": missing, "target": features_path(s, a),
-                    "command": (
-                        f"snakemake --cores 1 {' '.join(missing)} && snakemake --cores 2 {features_path(s, a)}"
-                        if missing and downloadable
-                        else (f"snakemake --cores 2 {features_path(s, a)}" if not missing else None)
-                    ),
-                })
+                rows.append(
+                    {
+                        "table": table,
+                        "paper_activity": pa,
+                        "source": s,
+                        "activity": a,
+                        "enabled": d["enabled"],
+                        "available": not missing,
+                        "missing": missing,
+                        "target": features_path(s, a),
+                        "command": (
+                            f"snakemake --cores 1 {' '.join(missing)} && snakemake --cores 2 {features_path(s, a)}"
+                            if missing and downloadable
+                            else (
+                                f"snakemake --cores 2 {features_path(s, a)}"
+                                if not missing
+                                else None
+                            )
+                        ),
+                    }
+                )
     return rows
 
 
@@ -276,21 +306,29 @@ def _check_datasets():
         d = dataset(s, a)
         where = f"config datasets.{s}.{a}"
         if not d["files"]:
-            raise InputError(f"{where}: give `files` (a list of paths) or `cmu_trials` (CMU ids 'SS_TT')")
+            raise InputError(
+                f"{where}: give `files` (a list of paths) or `cmu_trials` (CMU ids 'SS_TT')"
+            )
         if d["cmu_trials"] and d["format"] != "amc":
-            raise InputError(f"{where}: cmu_trials are downloaded as .amc; expected format: amc, got {d['format']!r}")
+            raise InputError(
+                f"{where}: cmu_trials are downloaded as .amc; expected format: amc, got {d['format']!r}"
+            )
         if d["format"] == "mat" and len(d["files"]) != 1:
             raise InputError(f"{where}: format mat takes exactly one file; got {len(d['files'])}")
         for f in d["files"]:
             suffix = Path(f).suffix.lower().lstrip(".")
             if suffix != d["format"]:
-                raise InputError(f"{where}: file {f!r} does not end in .{d['format']} (format: {d['format']})")
+                raise InputError(
+                    f"{where}: file {f!r} does not end in .{d['format']} (format: {d['format']})"
+                )
         if d["fewer_frames"] == "use_all" and d["frame_selection"] != "first":
             raise InputError(
                 f"{where}: fewer_frames: use_all needs frame_selection: first; got {d['frame_selection']!r}"
             )
         if d["frame_step"] != 1 and d["format"] not in MOTION_FORMATS:
-            raise InputError(f"{where}: frame_step applies to bvh/amc trials; got {d['frame_step']} for format mat")
+            raise InputError(
+                f"{where}: frame_step applies to bvh/amc trials; got {d['frame_step']} for format mat"
+            )
         if d["joint_map"] is not None and len(d["joint_map"]) == 0:
             raise InputError(f"{where}: joint_map is an empty list; expected joint names or null")
     both = set(motion_sources()) & set(mat_sources())
@@ -300,7 +338,9 @@ def _check_datasets():
             f"a source holds one kind (put them under different source names)"
         )
     if any(is_motion(s, a) for s, a in datasets_of(enabled_only=True)) and not codebook_files():
-        raise InputError("config features.codebook.files is empty; the bvh/amc data sets need codebook trials")
+        raise InputError(
+            "config features.codebook.files is empty; the bvh/amc data sets need codebook trials"
+        )
 
 
 _check_datasets()

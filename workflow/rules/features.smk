@@ -10,6 +10,9 @@ rule features_codebook:
         "logs/features/codebook.log",
     benchmark:
         "logs/features/codebook.benchmark.tsv"
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         render=render_params(),
         n_points=lookup(dpath="features/shape_context/n_points", within=config),
@@ -18,9 +21,6 @@ rule features_codebook:
         skip_frames=lookup(dpath="features/codebook/skip_frames", within=config),
         checksums=lookup(dpath="features/codebook/checksums", within=config),
         seed=lookup(dpath="features/seed", within=config),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/features_codebook.py"
 
@@ -36,6 +36,11 @@ rule features_mocap:
         "logs/features/{source}/{activity}.log",
     benchmark:
         "logs/features/{source}/{activity}.benchmark.tsv"
+    wildcard_constraints:
+        source=motion_source_regex(),
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         render=render_params(),
         n_points=lookup(dpath="features/shape_context/n_points", within=config),
@@ -43,11 +48,6 @@ rule features_mocap:
         preview_frames=lookup(dpath="features/preview_frames", within=config),
         seed=lookup(dpath="features/seed", within=config),
         meta=features_meta,
-    wildcard_constraints:
-        source=motion_source_regex(),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/features_mocap.py"
 
@@ -61,12 +61,12 @@ rule features_mat:
         "logs/features/{source}/{activity}.log",
     benchmark:
         "logs/features/{source}/{activity}.benchmark.tsv"
-    params:
-        options=mat_params,
     wildcard_constraints:
         source=mat_source_regex(),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        options=mat_params,
     script:
         "../scripts/features_mat.py"

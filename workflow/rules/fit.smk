@@ -49,15 +49,15 @@ rule cv:
         f"{LOGS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
-    params:
-        **CV_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(CV_PARAMS),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
     resources:
         mem_mb=2000,
         runtime=120,
+    params:
+        **CV_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
+        job=jobserver.job_params(CV_PARAMS),
     shell:
         JOB.format(target="bsrbench.jobs:cv")
 
@@ -74,17 +74,17 @@ rule fit:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
-    params:
-        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=False),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
     resources:
         mem_mb=2000,
         runtime=30,
+    params:
+        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
+        job=jobserver.job_params(FIT_PARAMS),
     shell:
         JOB.format(target="bsrbench.jobs:fit")
 
@@ -102,17 +102,17 @@ rule fit_chain:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.log",
     benchmark:
         f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
-    params:
-        **CHAIN_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(CHAIN_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
     resources:
         mem_mb=2000,
         runtime=60,
+    params:
+        **CHAIN_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
+        job=jobserver.job_params(CHAIN_PARAMS),
     shell:
         JOB.format(target="bsrbench.jobs:fit_chain")
 
@@ -127,16 +127,16 @@ rule pool_chains:
         predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
     log:
         f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
-    params:
-        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(FIT_PARAMS),
     wildcard_constraints:
         method=method_regex(chained=True),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
     resources:
         mem_mb=2000,
         runtime=10,
+    params:
+        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
+        job=jobserver.job_params(FIT_PARAMS),
     shell:
         JOB.format(target="bsrbench.jobs:pool")

@@ -7,14 +7,14 @@ rule download_cmu_asf:
         sha256=f"{download_dir()}/{{subject}}/{{subject}}.asf.sha256",
     log:
         "logs/download/{subject}.asf.log",
+    wildcard_constraints:
+        subject=r"\d+",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         base_url=lookup(dpath="download/base_url", within=config),
         expected=lambda wildcards: download_checksum(f"{wildcards.subject}.asf"),
-    wildcard_constraints:
-        subject=r"\d+",
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/download_cmu_asf.py"
 
@@ -27,15 +27,15 @@ rule download_cmu_amc:
         sha256=f"{download_dir()}/{{subject}}/{{subject}}_{{trial}}.amc.sha256",
     log:
         "logs/download/{subject}_{trial}.amc.log",
-    params:
-        base_url=lookup(dpath="download/base_url", within=config),
-        expected=lambda wildcards: download_checksum(f"{wildcards.subject}_{wildcards.trial}.amc"),
     wildcard_constraints:
         subject=r"\d+",
         trial=r"\d+",
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        base_url=lookup(dpath="download/base_url", within=config),
+        expected=lambda wildcards: download_checksum(f"{wildcards.subject}_{wildcards.trial}.amc"),
     script:
         "../scripts/download_cmu_amc.py"
 
@@ -49,12 +49,12 @@ rule mocap_poses:
         "logs/mocap/{source}/{activity}.log",
     benchmark:
         "logs/mocap/{source}/{activity}.benchmark.tsv"
-    params:
-        options=motion_params,
     wildcard_constraints:
         source=motion_source_regex(),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        options=motion_params,
     script:
         "../scripts/mocap_poses.py"

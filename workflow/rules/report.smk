@@ -16,6 +16,9 @@ rule table:
         ),
     log:
         f"{LOGS}/report/table{{table}}_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         design=study_design(),
         methods=table_methods(),
@@ -24,10 +27,9 @@ rule table:
         protocols=config["protocols"],
         status=lambda w: data_status(w.source),
         skipped=lambda w: skipped_notes(w.source),
-        frames=lambda w: {a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]},
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
+        frames=lambda w: {
+            a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]
+        },
     script:
         "../scripts/tables.py"
 
@@ -41,6 +43,9 @@ rule report_text:
         body=f"{REPORTS}/tables/body.tex",
     log:
         f"{LOGS}/report/report_text.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         design=study_design(),
         labels=method_labels(),
@@ -50,12 +55,10 @@ rule report_text:
         figures=figure_targets("pdf"),
         status={s: data_status(s) for s in report_sources()},
         stick_kinds={
-            s: sorted({str(stick_kind(s, a)) for a in config["study_activities"][s]}) for s in report_sources()
+            s: sorted({str(stick_kind(s, a)) for a in config["study_activities"][s]})
+            for s in report_sources()
         },
         subjective_first=next(iter(subjective_methods()), ""),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/report_text.py"
 
@@ -74,14 +77,14 @@ rule plot_error_vs_ntrain:
         ),
     log:
         f"{LOGS}/report/error_vs_ntrain_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         design=study_design(),
         n_train=config["n_train"],
         methods=table_methods(),
         labels=method_labels(),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_error.py"
 
@@ -99,13 +102,13 @@ rule plot_calibration:
         ),
     log:
         f"{LOGS}/report/calibration_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         design=study_design(),
         methods=table_methods(),
         labels=method_labels(),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_calibration.py"
 
@@ -123,12 +126,12 @@ rule plot_trace:
         ),
     log:
         f"{LOGS}/report/trace.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         method=config["report"]["trace_method"],
         labels=method_labels(),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_trace.py"
 
@@ -146,11 +149,11 @@ rule plot_gxy:
         ),
     log:
         f"{LOGS}/report/gxy.log",
-    params:
-        labels=method_labels(),
-    threads: 1
     conda:
         "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        labels=method_labels(),
     script:
         "../scripts/plots_gxy.py"
 
@@ -168,15 +171,15 @@ rule report_why_pm:
         ),
     log:
         f"{LOGS}/report/why_pm.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         variants=pm_variants(),
         base=config["report"].get("trace_method") or "PM",
         nn="NN1",
         labels=method_labels(),
         figures=why_pm_figures("pdf"),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/report_why_pm.py"
 
@@ -195,6 +198,9 @@ rule plot_subjective:
         ),
     log:
         f"{LOGS}/report/subjective_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         design=study_design(),
         methods=subjective_methods(),
@@ -206,9 +212,6 @@ rule plot_subjective:
         labels=method_labels(),
         motion=subjective_motion,
         sticks=lambda w: {a: stick_kind(w.source, a) for a in config["study_activities"][w.source]},
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/plots_subjective.py"
 
@@ -225,6 +228,9 @@ rule report_pdf:
         report(f"{REPORTS}/report.pdf", category="Report", caption="../report/report.rst"),
     log:
         f"{LOGS}/report/report_pdf.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
     params:
         # named on page 1 of the report (with the date, the git commit and the machine), in the order they apply
         configfiles=[
@@ -236,8 +242,5 @@ rule report_pdf:
         ],
         # and the --config KEY=VALUE overrides (command line or profile), which apply after them
         overrides=config_overrides(),
-    threads: 1
-    conda:
-        "../envs/bsrbench.yaml"
     script:
         "../scripts/report_pdf.py"

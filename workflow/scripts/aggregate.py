@@ -5,11 +5,11 @@ The convergence columns (n_chains, r_hat_*, ess_bulk_*) are always present, NaN 
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.convergence import with_convergence_columns  # noqa: E402
-from bsrbench.reporting.tables import aggregate_files, write_csv  # noqa: E402
+from bsrbench.reporting.convergence import with_convergence_columns
+from bsrbench.reporting.tables import aggregate_files, write_csv
 
-df = with_convergence_columns(aggregate_files(snakemake.input))  # noqa: F821
-write_csv(df, snakemake.output[0])  # noqa: F821
+df = with_convergence_columns(aggregate_files(snakemake.input))
+write_csv(df, snakemake.output[0])
 print(f"{len(df)} rows", file=sys.stderr)

@@ -2,11 +2,11 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import download_cmu_trial  # noqa: E402
+from bsrbench.datasets import download_cmu_trial
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 download_cmu_trial(
     sm.wildcards.subject,
     sm.wildcards.trial,

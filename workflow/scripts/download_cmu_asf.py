@@ -2,9 +2,14 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import download_cmu_skeleton  # noqa: E402
+from bsrbench.datasets import download_cmu_skeleton
 
-sm = snakemake  # noqa: F821
-download_cmu_skeleton(sm.wildcards.subject, sm.output.asf, base_url=sm.params.base_url, expected_sha256=sm.params.expected)
+sm = snakemake
+download_cmu_skeleton(
+    sm.wildcards.subject,
+    sm.output.asf,
+    base_url=sm.params.base_url,
+    expected_sha256=sm.params.expected,
+)

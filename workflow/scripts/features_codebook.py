@@ -2,11 +2,11 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import learn_codebook_from_trials  # noqa: E402
+from bsrbench.datasets import learn_codebook_from_trials
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 centres = learn_codebook_from_trials(
     list(sm.input.trials),
     sm.output[0],
@@ -18,4 +18,6 @@ centres = learn_codebook_from_trials(
     skip_frames=sm.params.skip_frames,
     checksums=sm.params.checksums,
 )
-print(f"{sm.output[0]}: {centres.shape[0]} centres of dimension {centres.shape[1]}", file=sys.stderr)
+print(
+    f"{sm.output[0]}: {centres.shape[0]} centres of dimension {centres.shape[1]}", file=sys.stderr
+)

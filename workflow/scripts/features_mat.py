@@ -2,10 +2,10 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import build_mat_features  # noqa: E402
+from bsrbench.datasets import build_mat_features
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 fs = build_mat_features(sm.input.mat, sm.output[0], **sm.params.options)
 print(f"{sm.output[0]}: X {fs.X.shape}, Y {fs.Y.shape}", file=sys.stderr)

@@ -2,11 +2,11 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import compute_mocap_features  # noqa: E402
+from bsrbench.datasets import compute_mocap_features
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 fs = compute_mocap_features(
     sm.input.motion,
     sm.input.codebook,

@@ -2,12 +2,15 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.datasets import prepare_motion  # noqa: E402
+from bsrbench.datasets import prepare_motion
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 motion = prepare_motion(
     list(sm.input.trials), sm.output[0], asf=sm.input.get("asf"), **sm.params.options
 )
-print(f"{sm.output[0]}: {motion.n_frames} frames of {motion.trial_ids}, {len(motion.joint_names)} joints", file=sys.stderr)
+print(
+    f"{sm.output[0]}: {motion.n_frames} frames of {motion.trial_ids}, {len(motion.joint_names)} joints",
+    file=sys.stderr,
+)

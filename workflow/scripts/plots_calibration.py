@@ -2,12 +2,12 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.plots import plot_calibration, save  # noqa: E402
-from bsrbench.reporting.tables import read_results  # noqa: E402
+from bsrbench.reporting.plots import plot_calibration, save
+from bsrbench.reporting.tables import read_results
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 fig = plot_calibration(
     read_results(sm.input.results, design=dict(sm.params.design)),
     methods=list(sm.params.methods),

@@ -2,12 +2,12 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.plots import plot_error_vs_ntrain, save  # noqa: E402
-from bsrbench.reporting.tables import read_paper_tables, read_results  # noqa: E402
+from bsrbench.reporting.plots import plot_error_vs_ntrain, save
+from bsrbench.reporting.tables import read_paper_tables, read_results
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 fig = plot_error_vs_ntrain(
     read_results(sm.input.results, design=dict(sm.params.design)),
     read_paper_tables(sm.input.paper),

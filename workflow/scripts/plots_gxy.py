@@ -4,22 +4,28 @@ import json
 import sys
 from pathlib import Path
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.io import read_npz  # noqa: E402
-from bsrbench.reporting.convergence import gxy_panel, plot_gxy  # noqa: E402
-from bsrbench.reporting.plots import save  # noqa: E402
-from bsrbench.reporting.tables import read_results  # noqa: E402
+from bsrbench.io import read_npz
+from bsrbench.reporting.convergence import gxy_panel, plot_gxy
+from bsrbench.reporting.plots import save
+from bsrbench.reporting.tables import read_results
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 df = read_results(sm.input.results)
 labels = dict(sm.params.labels)
 items = []
 for p in sm.input.predictions:
     path = Path(p)
     protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)
-    row = df[(df["protocol"] == protocol) & (df["source"] == source) & (df["activity"] == activity)
-             & (df["method"] == method) & (df["n_train"] == int(n[1:])) & (df["seed"] == int(seed[4:]))]
+    row = df[
+        (df["protocol"] == protocol)
+        & (df["source"] == source)
+        & (df["activity"] == activity)
+        & (df["method"] == method)
+        & (df["n_train"] == int(n[1:]))
+        & (df["seed"] == int(seed[4:]))
+    ]
     params = json.loads(row["params"].iloc[0]) if len(row) else {}
     k, rel, prior = gxy_panel(params, int(n[1:]))
     title = f"{labels.get(method, method)}: K={k} {rel} N={n[1:]}"

@@ -12,21 +12,21 @@ from pathlib import Path
 
 import numpy as np
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.io import read_npz  # noqa: E402
-from bsrbench.metrics import wrap_degrees  # noqa: E402
-from bsrbench.reporting.plots import (  # noqa: E402
+from bsrbench.io import read_npz
+from bsrbench.metrics import wrap_degrees
+from bsrbench.reporting.plots import (
     plot_subjective,
     plot_subjective_sticks,
     pose_positions,
     save,
     subjective_panels,
 )
-from bsrbench.reporting.tables import read_results  # noqa: E402
-from bsrbench.study import load_features  # noqa: E402
+from bsrbench.reporting.tables import read_results
+from bsrbench.study import load_features
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 # the predictions drawn here are those of the configured study: fail on an aggregate of another one
 read_results(sm.input.results, design=dict(sm.params.design))
 methods = list(sm.params.methods)
@@ -44,8 +44,17 @@ items = []
 for i, activity in enumerate(activities):
     preds = {}
     for j, m in enumerate(methods):
-        preds[m] = read_npz(sm.input.predictions[i * len(methods) + j], ("test", "y_true", "y_pred"))
-    items.append((activity, dict(sm.params.labels_activity)[activity], load_features(sm.input.features[i]), preds))
+        preds[m] = read_npz(
+            sm.input.predictions[i * len(methods) + j], ("test", "y_true", "y_pred")
+        )
+    items.append(
+        (
+            activity,
+            dict(sm.params.labels_activity)[activity],
+            load_features(sm.input.features[i]),
+            preds,
+        )
+    )
 panels = subjective_panels(items, methods, frame_errors)
 
 kinds = dict(sm.params.sticks)
@@ -81,7 +90,10 @@ if panels and all(kinds.get(a) for a in activities):
         tf = int(mo["trial_frames"][k])
         pj = [str(j) for j in mo["pose_joints"]]
         sil = render_silhouettes(
-            mo["positions"][k : k + 1], mo["parents"], [str(j) for j in mo["joint_names"]], **motion[a]["render"]
+            mo["positions"][k : k + 1],
+            mo["parents"],
+            [str(j) for j in mo["joint_names"]],
+            **motion[a]["render"],
         )[0]
         stick_panels.append(
             {

@@ -4,14 +4,14 @@ import json
 import sys
 from pathlib import Path
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.io import read_npz  # noqa: E402
-from bsrbench.reporting.convergence import plot_chain_traces  # noqa: E402
-from bsrbench.reporting.plots import save  # noqa: E402
-from bsrbench.reporting.tables import read_results  # noqa: E402
+from bsrbench.io import read_npz
+from bsrbench.reporting.convergence import plot_chain_traces
+from bsrbench.reporting.plots import save
+from bsrbench.reporting.tables import read_results
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 path = Path(sm.input.predictions)
 # .../fit/{protocol}/{source}/{activity}/{method}/n{N}/seed{seed}.npz
 protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)

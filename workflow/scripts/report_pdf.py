@@ -4,15 +4,17 @@ report folder reports/{study} (the PDF's folder), where its tables and figures a
 import sys
 from pathlib import Path
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.report import build_header, build_pdf  # noqa: E402
+from bsrbench.reporting.report import build_header, build_pdf
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 build_pdf(
     sm.input.template,
     sm.output[0],
     root=Path(sm.output[0]).parent,
     log=sm.log[0] + ".latexmk",
-    header=build_header(configfiles=list(sm.params.configfiles), overrides=list(sm.params.overrides)),
+    header=build_header(
+        configfiles=list(sm.params.configfiles), overrides=list(sm.params.overrides)
+    ),
 )

@@ -3,17 +3,25 @@
 import sys
 from pathlib import Path
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.plots import PROTOCOL_LINE_NAMES, PROTOCOL_LINESTYLES, paper_points_not_drawn  # noqa: E402
-from bsrbench.reporting.report import missing_data_note, write_body, write_generated  # noqa: E402
-from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results  # noqa: E402
-from bsrbench.study import estimator_defaults  # noqa: E402
+from bsrbench.reporting.plots import (
+    PROTOCOL_LINE_NAMES,
+    PROTOCOL_LINESTYLES,
+    paper_points_not_drawn,
+)
+from bsrbench.reporting.report import missing_data_note, write_body, write_generated
+from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results
+from bsrbench.study import estimator_defaults
 
-sm = snakemake  # noqa: F821
-root = Path(sm.output.body).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
+sm = snakemake
+root = Path(
+    sm.output.body
+).parent.parent  # the study's report folder reports/{study}: LaTeX paths are relative to it
 labels = dict(sm.params.labels)
-first = latex_escape(labels.get(sm.params.subjective_first, sm.params.subjective_first))  # in captions
+first = latex_escape(
+    labels.get(sm.params.subjective_first, sm.params.subjective_first)
+)  # in captions
 # the split drawn: the first seed of the study (config key seed_start; 0 in the paper protocol)
 seed0 = int(sm.config.get("seed_start", 0))
 df = read_results(sm.input.results, design=dict(sm.params.design))
@@ -26,21 +34,33 @@ defaults = {m: estimator_defaults(e) for m, e in estimators}
 # the calibration figure's protocol (plots.plot_calibration): the random one (the paper's) if run, else the first
 _protocols = sorted(set(df["protocol"]))
 calibration_protocol = (
-    "random protocol" if "random" in _protocols or not _protocols
+    "random protocol"
+    if "random" in _protocols or not _protocols
     else f"{latex_escape(_protocols[0])} protocol, as named in the panel titles; this study did not run the random one"
 )
 # Fig. 1's line styles (plots.plot_error_vs_ntrain): solid for the random protocol, dashed for the contiguous one, ...
-study_lines = "; ".join(f"{PROTOCOL_LINE_NAMES[ls]} lines: {latex_escape(p.replace('_', '-'))} protocol"
-                        for p, ls in PROTOCOL_LINESTYLES.items() if p in _protocols)
+study_lines = "; ".join(
+    f"{PROTOCOL_LINE_NAMES[ls]} lines: {latex_escape(p.replace('_', '-'))} protocol"
+    for p, ls in PROTOCOL_LINESTYLES.items()
+    if p in _protocols
+)
 
 
 def not_drawn(source):
     """The sentence naming the paper's points Fig. 1 leaves out on ``source`` (plots.paper_points_not_drawn), or ""."""
-    left = paper_points_not_drawn(df, paper, source=source, methods=list(sm.params.figure_methods), labels=labels,
-                                  n_train=list(sm.params.design["n_train"]))
+    left = paper_points_not_drawn(
+        df,
+        paper,
+        source=source,
+        methods=list(sm.params.figure_methods),
+        labels=labels,
+        n_train=list(sm.params.design["n_train"]),
+    )
     if not left:
         return ""
-    where = "; ".join(f"{latex_escape(a)} at $N = {', '.join(map(str, ns))}$" for a, ns in left.items())
+    where = "; ".join(
+        f"{latex_escape(a)} at $N = {', '.join(map(str, ns))}$" for a, ns in left.items()
+    )
     return (
         f" Not drawn: the paper's points at the sizes this study skipped for an activity (too few test frames "
         f"would remain; see the tables): {where}."
@@ -79,7 +99,7 @@ def caption(kind, source):
         return (
             f"Subjective comparison on the {source} data: for each activity one test frame (largest $N$, seed {seed0}; "
             f"the test frame with the median error of {first}). These features come with joint angles in a "
-            "skeleton convention that is not configured (data set key pose\_convention), so no stick figure is drawn: "
+            r"skeleton convention that is not configured (data set key pose\_convention), so no stick figure is drawn: "
             "left the input shape-context histogram, right the true and predicted joint angles; in brackets "
             "each method's error on this frame."
         )
@@ -100,7 +120,10 @@ write_generated(
     paper,
     labels=labels,
     defaults=defaults,
-    study=(sm.params.study, Path(sm.input.results).parent.parent.as_posix()),  # results/{study}/aggregate/..
+    study=(
+        sm.params.study,
+        Path(sm.input.results).parent.parent.as_posix(),
+    ),  # results/{study}/aggregate/..
 )
 KINDS = ("error_vs_ntrain", "subjective", "calibration")
 figures = []

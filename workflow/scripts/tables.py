@@ -2,9 +2,9 @@
 
 import sys
 
-sys.stderr = open(snakemake.log[0], "w")  # noqa: F821
+sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.tables import (  # noqa: E402
+from bsrbench.reporting.tables import (
     latex_table,
     read_paper_tables,
     read_results,
@@ -12,7 +12,7 @@ from bsrbench.reporting.tables import (  # noqa: E402
     write_text,
 )
 
-sm = snakemake  # noqa: F821
+sm = snakemake
 text = latex_table(
     summarize(read_results(sm.input.results, design=dict(sm.params.design))),
     read_paper_tables(sm.input.paper),

@@ -5,7 +5,12 @@ Public API: ``outer_contour``, ``contour_length``, ``sample_contour``, ``shape_c
 """
 
 from bsrbench.features.codebook import default_soft_sigma, histogram_features, learn_codebook
-from bsrbench.features.contour import MIN_CONTOUR_POINTS, contour_length, outer_contour, sample_contour
+from bsrbench.features.contour import (
+    MIN_CONTOUR_POINTS,
+    contour_length,
+    outer_contour,
+    sample_contour,
+)
 from bsrbench.features.shape_context import shape_contexts, silhouette_descriptors
 
 __all__ = [

@@ -32,11 +32,15 @@ def _stack(descriptor_list, name="descriptor_list"):
     for i, d in enumerate(descriptor_list):
         d = np.asarray(d, dtype=float)
         if d.ndim != 2 or d.shape[0] < 1:
-            raise InputError(f"{name}[{i}]: expected an (n >= 1, dim) array of descriptors, got shape {d.shape}")
+            raise InputError(
+                f"{name}[{i}]: expected an (n >= 1, dim) array of descriptors, got shape {d.shape}"
+            )
         if width is None:
             width = d.shape[1]
         elif d.shape[1] != width:
-            raise InputError(f"{name}[{i}]: descriptors have {d.shape[1]} columns, expected {width} like item 0")
+            raise InputError(
+                f"{name}[{i}]: descriptors have {d.shape[1]} columns, expected {width} like item 0"
+            )
         if not np.all(np.isfinite(d)):
             raise InputError(f"{name}[{i}]: contains non-finite values")
         arrays.append(d)
@@ -45,7 +49,9 @@ def _stack(descriptor_list, name="descriptor_list"):
     return arrays
 
 
-def learn_codebook(descriptor_list, n_centres=100, seed=0, max_descriptors=None, n_init=3, max_iter=300):
+def learn_codebook(
+    descriptor_list, n_centres=100, seed=0, max_descriptors=None, n_init=3, max_iter=300
+):
     """(n_centres, dim) k-means centres of all descriptors (scikit-learn ``KMeans``, k-means++ initialisation,
     ``n_init`` restarts, ``random_state=seed``): deterministic for a seed.
 
@@ -67,7 +73,9 @@ def learn_codebook(descriptor_list, n_centres=100, seed=0, max_descriptors=None,
         raise InputError(f"descriptor_list: {len(x)} descriptors cannot make {n_centres} centres")
     if len(np.unique(x, axis=0)) < n_centres:
         raise InputError(f"descriptor_list: fewer than n_centres={n_centres} distinct descriptors")
-    km = KMeans(n_clusters=int(n_centres), n_init=int(n_init), max_iter=int(max_iter), random_state=seed)
+    km = KMeans(
+        n_clusters=int(n_centres), n_init=int(n_init), max_iter=int(max_iter), random_state=seed
+    )
     km.fit(x)
     return np.asarray(km.cluster_centers_, dtype=float)
 
@@ -81,7 +89,12 @@ def default_soft_sigma(codebook):
 
 
 def histogram_features(
-    descriptor_list, codebook, soft=True, soft_sigma=None, n_neighbours=DEFAULT_NEIGHBOURS, chunk_rows=65536
+    descriptor_list,
+    codebook,
+    soft=True,
+    soft_sigma=None,
+    n_neighbours=DEFAULT_NEIGHBOURS,
+    chunk_rows=65536,
 ):
     """(F, n_centres) histograms of shape contexts, one row per item of ``descriptor_list``.
 
@@ -92,7 +105,12 @@ def histogram_features(
     """
     arrays = _stack(descriptor_list)
     c = np.asarray(codebook, dtype=float)
-    if c.ndim != 2 or c.shape[0] < 1 or c.shape[1] != arrays[0].shape[1] or not np.all(np.isfinite(c)):
+    if (
+        c.ndim != 2
+        or c.shape[0] < 1
+        or c.shape[1] != arrays[0].shape[1]
+        or not np.all(np.isfinite(c))
+    ):
         raise InputError(
             f"codebook: expected a finite (n_centres, {arrays[0].shape[1]}) array matching the descriptors, "
             f"got shape {c.shape}"
@@ -104,7 +122,9 @@ def histogram_features(
         m = min(int(n_neighbours), k)
         sigma = default_soft_sigma(c) if soft_sigma is None else float(soft_sigma)
         if not (np.isfinite(sigma) and sigma > 0):
-            raise InputError(f"soft_sigma: expected a positive kernel width, got {soft_sigma!r} (resolved {sigma!r})")
+            raise InputError(
+                f"soft_sigma: expected a positive kernel width, got {soft_sigma!r} (resolved {sigma!r})"
+            )
     else:
         m = 1
     x = np.vstack(arrays)

@@ -61,7 +61,9 @@ def _as_mask(mask, name="mask"):
         raise InputError(f"{name}: expected a 2-D binary image, got shape {mask.shape}")
     if mask.dtype != bool:
         if not np.all(np.isin(mask, (0, 1))):
-            raise InputError(f"{name}: expected a binary image (bool or 0/1), got values other than 0 and 1")
+            raise InputError(
+                f"{name}: expected a binary image (bool or 0/1), got values other than 0 and 1"
+            )
         mask = mask.astype(bool)
     return mask
 
@@ -112,8 +114,15 @@ def sample_contour(contour, n_points, rng=None, jitter=0.0):
     Points are linear interpolations between the contour's points, so they lie on its polygon.
     """
     contour = np.asarray(contour, dtype=float)
-    if contour.ndim != 2 or contour.shape[1] != 2 or len(contour) < 3 or not np.all(np.isfinite(contour)):
-        raise InputError(f"contour: expected at least 3 finite (x, y) points, got shape {contour.shape}")
+    if (
+        contour.ndim != 2
+        or contour.shape[1] != 2
+        or len(contour) < 3
+        or not np.all(np.isfinite(contour))
+    ):
+        raise InputError(
+            f"contour: expected at least 3 finite (x, y) points, got shape {contour.shape}"
+        )
     if int(n_points) != n_points or n_points < 3:
         raise InputError(f"n_points: expected an integer >= 3, got {n_points!r}")
     if not (0 <= jitter < 0.5):

@@ -25,7 +25,9 @@ from bsrbench.features.contour import MIN_CONTOUR_POINTS, _as_mask, outer_contou
 def _check_points(points):
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 2 or points.shape[0] < 2:
-        raise InputError(f"points: expected an (n >= 2, 2) array of (x, y), got shape {points.shape}")
+        raise InputError(
+            f"points: expected an (n >= 2, 2) array of (x, y), got shape {points.shape}"
+        )
     if not np.all(np.isfinite(points)):
         raise InputError("points: contains non-finite coordinates")
     return points
@@ -40,9 +42,13 @@ def shape_contexts(points, n_radial=5, n_angular=12, r_inner=0.125, r_outer=2.0)
     """
     points = _check_points(points)
     if int(n_radial) != n_radial or n_radial < 1 or int(n_angular) != n_angular or n_angular < 1:
-        raise InputError(f"n_radial, n_angular: expected positive integers, got {n_radial!r}, {n_angular!r}")
+        raise InputError(
+            f"n_radial, n_angular: expected positive integers, got {n_radial!r}, {n_angular!r}"
+        )
     if not (0 < r_inner < r_outer) or not np.isfinite(r_outer):
-        raise InputError(f"r_inner, r_outer: expected 0 < r_inner < r_outer < inf, got {r_inner!r}, {r_outer!r}")
+        raise InputError(
+            f"r_inner, r_outer: expected 0 < r_inner < r_outer < inf, got {r_inner!r}, {r_outer!r}"
+        )
     n_radial, n_angular = int(n_radial), int(n_angular)
     n = len(points)
     diff = points[None, :, :] - points[:, None, :]  # diff[i, j] = p_j - p_i
@@ -82,7 +88,9 @@ def silhouette_descriptors(masks, n_points=200, seed=0, **shape_context_kw):
     """
     masks = np.asarray(masks)
     if masks.ndim != 3 or masks.shape[0] < 1:
-        raise InputError(f"masks: expected a (frames >= 1, height, width) array, got shape {masks.shape}")
+        raise InputError(
+            f"masks: expected a (frames >= 1, height, width) array, got shape {masks.shape}"
+        )
     out = []
     for f in range(masks.shape[0]):
         mask = _as_mask(masks[f], name=f"masks[{f}]")

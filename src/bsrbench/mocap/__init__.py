@@ -23,11 +23,36 @@ from .motion import (
     spread_indices,
     unwrap_degrees,
 )
-from .skeleton import Skeleton, bone_lengths, forward_kinematics, local_transforms, skeleton_positions
+from .skeleton import (
+    Skeleton,
+    bone_lengths,
+    forward_kinematics,
+    local_transforms,
+    skeleton_positions,
+)
 
 __all__ = [
-    "AMCData", "ASFSkeleton", "BVHData", "JOINT_MAPS", "Motion", "Skeleton", "asf_positions", "bone_lengths",
-    "detect_skeleton_kind", "format_bvh", "forward_kinematics", "load_motion", "local_transforms", "parse_amc",
-    "parse_asf", "parse_bvh", "pose_columns", "read_trial", "resolve_joint_map", "skeleton_positions",
-    "spread_indices", "unwrap_degrees", "write_bvh",
+    "AMCData",
+    "ASFSkeleton",
+    "BVHData",
+    "JOINT_MAPS",
+    "Motion",
+    "Skeleton",
+    "asf_positions",
+    "bone_lengths",
+    "detect_skeleton_kind",
+    "format_bvh",
+    "forward_kinematics",
+    "load_motion",
+    "local_transforms",
+    "parse_amc",
+    "parse_asf",
+    "parse_bvh",
+    "pose_columns",
+    "read_trial",
+    "resolve_joint_map",
+    "skeleton_positions",
+    "spread_indices",
+    "unwrap_degrees",
+    "write_bvh",
 ]

@@ -35,8 +35,12 @@ from ._text import first_bad_number, is_whole, read_lines, tokens
 from .skeleton import Skeleton, axis_rotation, forward_kinematics
 
 _DOF_CHANNEL = {
-    "rx": "Xrotation", "ry": "Yrotation", "rz": "Zrotation",
-    "tx": "Xposition", "ty": "Yposition", "tz": "Zposition",
+    "rx": "Xrotation",
+    "ry": "Yrotation",
+    "rz": "Zrotation",
+    "tx": "Xposition",
+    "ty": "Yposition",
+    "tz": "Zposition",
 }
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
 
@@ -76,7 +80,11 @@ def _fail(path, lineno, message):
 
 def _floats(path, lineno, tokens_, n, what):
     if len(tokens_) != n:
-        raise _fail(path, lineno, f"{what} needs {n} number{'s' if n > 1 else ''}, found {len(tokens_)} values")
+        raise _fail(
+            path,
+            lineno,
+            f"{what} needs {n} number{'s' if n > 1 else ''}, found {len(tokens_)} values",
+        )
     bad = first_bad_number(tokens_)
     if bad is not None:
         raise _fail(path, lineno, f"{what}: {tokens_[bad][:40]!r} is not a number")
@@ -106,13 +114,21 @@ def _direction(path, lineno, tokens_):
     nrm = float(np.linalg.norm(d))
     shown = " ".join(tokens_)
     if not nrm > 1e-6:
-        raise _fail(path, lineno, f"direction {shown} is the zero vector; expected a unit vector (the bone's "
-                                  f"direction in the default pose)")
+        raise _fail(
+            path,
+            lineno,
+            f"direction {shown} is the zero vector; expected a unit vector (the bone's "
+            f"direction in the default pose)",
+        )
     if abs(nrm - 1.0) > DIRECTION_TOLERANCE:
         unit = " ".join(f"{x:.6g}" for x in d / nrm)
-        raise _fail(path, lineno, f"direction {shown} has norm {nrm:.6g}; expected a unit vector (norm 1 within "
-                                  f"{DIRECTION_TOLERANCE:g}; the bone's length is the 'length' field), e.g. "
-                                  f"direction {unit}")
+        raise _fail(
+            path,
+            lineno,
+            f"direction {shown} has norm {nrm:.6g}; expected a unit vector (norm 1 within "
+            f"{DIRECTION_TOLERANCE:g}; the bone's length is the 'length' field), e.g. "
+            f"direction {unit}",
+        )
     return d / nrm
 
 
@@ -129,12 +145,18 @@ def _limits(path, lineno, body):
             else:
                 lo_hi += _floats(path, lineno, [x], 1, "limits")
         if lo_hi[0] > lo_hi[1]:
-            raise _fail(path, lineno, f"limits ({m.group(1)} {m.group(2)}): the lower bound {lo_hi[0]:g} is above the "
-                                      f"upper bound {lo_hi[1]:g}; expected (lo hi) with lo <= hi")
+            raise _fail(
+                path,
+                lineno,
+                f"limits ({m.group(1)} {m.group(2)}): the lower bound {lo_hi[0]:g} is above the "
+                f"upper bound {lo_hi[1]:g}; expected (lo hi) with lo <= hi",
+            )
         out.append(tuple(lo_hi))
         pos = m.end()
     if not out or body[pos:].strip():
-        raise _fail(path, lineno, f"expected limits as '(lo hi)' intervals, found {body.strip()[:60]!r}")
+        raise _fail(
+            path, lineno, f"expected limits as '(lo hi)' intervals, found {body.strip()[:60]!r}"
+        )
     return out
 
 
@@ -154,7 +176,12 @@ def parse_asf(path):
     section = None
     seen = {}
     units = {"length": 1.0, "angle": "deg"}
-    root = {"order": None, "axis": "XYZ", "position": [0.0, 0.0, 0.0], "orientation": [0.0, 0.0, 0.0]}
+    root = {
+        "order": None,
+        "axis": "XYZ",
+        "position": [0.0, 0.0, 0.0],
+        "orientation": [0.0, 0.0, 0.0],
+    }
     bones = {}
     bone = None
     last_field = None
@@ -171,23 +198,33 @@ def parse_asf(path):
             name = key[1:]
             if name not in _SECTIONS:
                 raise _fail(
-                    path, lineno, f"unknown section {t[0][:40]!r}; expected one of {', '.join(':' + x for x in _SECTIONS)}"
+                    path,
+                    lineno,
+                    f"unknown section {t[0][:40]!r}; expected one of {', '.join(':' + x for x in _SECTIONS)}",
                 )
             if bone is not None:
                 raise _fail(path, lineno, f"bone of line {bone['line']} has no 'end' before {t[0]}")
             if name in seen:
-                raise _fail(path, lineno, f"a second {t[0]} section (the first is on line {seen[name]})")
+                raise _fail(
+                    path, lineno, f"a second {t[0]} section (the first is on line {seen[name]})"
+                )
             if name in ("version", "name") and len(t) < 2:
                 raise _fail(path, lineno, f"{t[0]} needs a value")
             if name in ("units", "documentation", "root", "bonedata", "hierarchy") and len(t) != 1:
-                raise _fail(path, lineno, f"expected {t[0]} alone on its line, found {line.strip()[:60]!r}")
+                raise _fail(
+                    path, lineno, f"expected {t[0]} alone on its line, found {line.strip()[:60]!r}"
+                )
             seen[name] = lineno
             section = name
             continue
         if section == "documentation":
             continue
         if section in (None, "version", "name", "skin"):
-            raise _fail(path, lineno, f"unexpected {t[0][:40]!r}; expected a section keyword such as :units or :root")
+            raise _fail(
+                path,
+                lineno,
+                f"unexpected {t[0][:40]!r}; expected a section keyword such as :units or :root",
+            )
         if section == "units":
             if key in ("length", "mass"):
                 value = _floats(path, lineno, t[1:], 1, key)[0]
@@ -197,51 +234,90 @@ def parse_asf(path):
                     units["length"] = value
             elif key == "angle":
                 if len(t) != 2 or t[1].lower() not in ("deg", "rad"):
-                    raise _fail(path, lineno, f"angle unit must be 'deg' or 'rad', found {' '.join(t[1:])[:40]!r}")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"angle unit must be 'deg' or 'rad', found {' '.join(t[1:])[:40]!r}",
+                    )
                 units["angle"] = t[1].lower()
             else:
-                raise _fail(path, lineno, f"unknown unit {t[0][:40]!r}; expected mass, length or angle")
+                raise _fail(
+                    path, lineno, f"unknown unit {t[0][:40]!r}; expected mass, length or angle"
+                )
         elif section == "root":
             if key == "order":
                 order = tuple(x.upper() for x in t[1:])
                 bad = [x for x in order if x.lower() not in _DOF_CHANNEL]
                 if bad or not order or len(set(order)) != len(order):
                     raise _fail(
-                        path, lineno, f"root order {' '.join(t[1:])[:60]!r}; expected distinct TX TY TZ RX RY RZ"
+                        path,
+                        lineno,
+                        f"root order {' '.join(t[1:])[:60]!r}; expected distinct TX TY TZ RX RY RZ",
                     )
                 root["order"] = order
             elif key == "axis":
                 if len(t) != 2 or sorted(t[1].upper()) != ["X", "Y", "Z"]:
-                    raise _fail(path, lineno, f"root axis must be a permutation of XYZ, found {' '.join(t[1:])[:40]!r}")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"root axis must be a permutation of XYZ, found {' '.join(t[1:])[:40]!r}",
+                    )
                 root["axis"] = t[1].upper()
             elif key in ("position", "orientation"):
                 root[key] = _floats(path, lineno, t[1:], 3, key)
             else:
-                raise _fail(path, lineno, f"unknown root field {t[0][:40]!r}; expected order, axis, position or orientation")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"unknown root field {t[0][:40]!r}; expected order, axis, position or orientation",
+                )
         elif section == "bonedata":
             if key == "begin":
                 if bone is not None:
-                    raise _fail(path, lineno, f"'begin' inside the bone of line {bone['line']}; expected 'end'")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"'begin' inside the bone of line {bone['line']}; expected 'end'",
+                    )
                 if len(t) != 1:
-                    raise _fail(path, lineno, f"expected 'begin' alone on its line, found {line.strip()[:60]!r}")
-                bone = {"dof": (), "limits": [], "axis": [0.0, 0.0, 0.0], "axis_order": "XYZ", "line": lineno}
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"expected 'begin' alone on its line, found {line.strip()[:60]!r}",
+                    )
+                bone = {
+                    "dof": (),
+                    "limits": [],
+                    "axis": [0.0, 0.0, 0.0],
+                    "axis_order": "XYZ",
+                    "line": lineno,
+                }
                 last_field = None
                 continue
             if bone is None:
                 raise _fail(path, lineno, f"{t[0][:40]!r} outside a bone's begin/end")
             if key == "end":
                 if len(t) != 1:
-                    raise _fail(path, lineno, f"expected 'end' alone on its line, found {line.strip()[:60]!r}")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"expected 'end' alone on its line, found {line.strip()[:60]!r}",
+                    )
                 for field_ in ("name", "direction", "length"):
                     if field_ not in bone:
-                        raise _fail(path, lineno, f"the bone of line {bone['line']} has no {field_!r}")
+                        raise _fail(
+                            path, lineno, f"the bone of line {bone['line']} has no {field_!r}"
+                        )
                 if bone["limits"] and len(bone["limits"]) != len(bone["dof"]):
                     raise _fail(
-                        path, lineno,
+                        path,
+                        lineno,
                         f"bone {bone['name']!r} has {len(bone['limits'])} limits for {len(bone['dof'])} dof",
                     )
                 if bone["name"] in bones or bone["name"] == "root":
-                    raise _fail(path, bone["name_line"], f"bone name {bone['name']!r} is used twice")
+                    raise _fail(
+                        path, bone["name_line"], f"bone name {bone['name']!r} is used twice"
+                    )
                 bones[bone["name"]] = bone
                 bone = None
                 continue
@@ -249,7 +325,11 @@ def parse_asf(path):
                 bone["limits"] += _limits(path, lineno, line.replace(",", " "))
                 continue
             if key not in _BONE_FIELDS:
-                raise _fail(path, lineno, f"unknown bone field {t[0][:40]!r}; expected one of {', '.join(_BONE_FIELDS)}")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"unknown bone field {t[0][:40]!r}; expected one of {', '.join(_BONE_FIELDS)}",
+                )
             if key in bone and key not in ("dof", "limits", "axis"):
                 raise _fail(path, lineno, f"a second {key!r} in the bone of line {bone['line']}")
             last_field = key
@@ -259,7 +339,9 @@ def parse_asf(path):
                 bone["id"] = t[1]
             elif key == "name":
                 if len(t) != 2:
-                    raise _fail(path, lineno, f"name needs one word (the bone's name), found {len(t) - 1}")
+                    raise _fail(
+                        path, lineno, f"name needs one word (the bone's name), found {len(t) - 1}"
+                    )
                 bone["name"], bone["name_line"] = t[1], lineno
             elif key == "direction":
                 bone["direction"] = _direction(path, lineno, t[1:])
@@ -272,7 +354,9 @@ def parse_asf(path):
             elif key == "axis":
                 if len(t) != 5 or sorted(t[4].upper()) != ["X", "Y", "Z"]:
                     raise _fail(
-                        path, lineno, f"bone axis must be 'axis ax ay az XYZ', found {line.strip()[:60]!r}"
+                        path,
+                        lineno,
+                        f"bone axis must be 'axis ax ay az XYZ', found {line.strip()[:60]!r}",
                     )
                 bone["axis"] = _floats(path, lineno, t[1:4], 3, "axis")
                 bone["axis_order"] = t[4].upper()
@@ -280,7 +364,11 @@ def parse_asf(path):
                 dof = tuple(x.lower() for x in t[1:])
                 bad = [x for x in dof if x not in _DOF_CHANNEL]
                 if bad or not dof or len(set(dof)) != len(dof):
-                    raise _fail(path, lineno, f"dof {' '.join(t[1:])[:60]!r}; expected distinct rx ry rz tx ty tz")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"dof {' '.join(t[1:])[:60]!r}; expected distinct rx ry rz tx ty tz",
+                    )
                 bone["dof"] = dof
             elif key == "limits":
                 body = line.replace(",", " ")
@@ -292,14 +380,22 @@ def parse_asf(path):
             elif key == "end" and len(t) == 1 and hier_state == "open":
                 hier_state = "closed"
             elif hier_state != "open":
-                want = "'begin'" if hier_state is None else "the next section (':hierarchy' is closed)"
+                want = (
+                    "'begin'" if hier_state is None else "the next section (':hierarchy' is closed)"
+                )
                 raise _fail(path, lineno, f"expected {want}, found {line.strip()[:60]!r}")
             elif len(t) < 2:
-                raise _fail(path, lineno, f"a hierarchy line names a parent and its children, found {t[0][:40]!r}")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"a hierarchy line names a parent and its children, found {t[0][:40]!r}",
+                )
             else:
                 hierarchy.append((lineno, t[0], t[1:]))
     if bone is not None:
-        raise _fail(path, n_lines, f"file ends inside the bone of line {bone['line']}; expected 'end'")
+        raise _fail(
+            path, n_lines, f"file ends inside the bone of line {bone['line']}; expected 'end'"
+        )
     if hier_state == "open":
         raise _fail(path, n_lines, "file ends inside ':hierarchy'; expected 'end'")
     if root["order"] is None:
@@ -323,7 +419,9 @@ def parse_asf(path):
             children.setdefault(p, []).append(c)
     missing = [b for b in bones if b not in parent_of]
     if missing:
-        raise _fail(path, bones[missing[0]]["line"], f"bone(s) {missing} not placed in ':hierarchy'")
+        raise _fail(
+            path, bones[missing[0]]["line"], f"bone(s) {missing} not placed in ':hierarchy'"
+        )
     reached, todo = set(), ["root"]
     while todo:
         for c in children.get(todo.pop(), []):
@@ -331,7 +429,9 @@ def parse_asf(path):
             todo.append(c)
     loose = [b for b in bones if b not in reached]
     if loose:
-        raise _fail(path, placed_on[loose[0]], f"bone(s) {loose} form a cycle, not a tree below root")
+        raise _fail(
+            path, placed_on[loose[0]], f"bone(s) {loose} form a cycle, not a tree below root"
+        )
 
     angle_scale = 1.0 if units["angle"] == "deg" else 180.0 / np.pi
     names = ["root"]
@@ -348,7 +448,9 @@ def parse_asf(path):
         names.append(name)
         parents.append(parent_index)
         pb = names[parent_index]
-        offsets.append(np.zeros(3) if pb == "root" else bones[pb]["length"] * bones[pb]["direction"])
+        offsets.append(
+            np.zeros(3) if pb == "root" else bones[pb]["length"] * bones[pb]["direction"]
+        )
         channels.append(tuple(_DOF_CHANNEL[x] for x in b["dof"]))
         axes.append(_order_matrix(b["axis_order"], np.array([b["axis"]]) * angle_scale)[0])
         end_site.append(False)
@@ -370,7 +472,14 @@ def parse_asf(path):
         visit(c, 0)
     skel = Skeleton(names, parents, offsets, channels, end_site)
     return ASFSkeleton(
-        skel, np.array(axes), root["order"], units["length"], units["angle"], limits, str(path), masses
+        skel,
+        np.array(axes),
+        root["order"],
+        units["length"],
+        units["angle"],
+        limits,
+        str(path),
+        masses,
     )
 
 
@@ -423,7 +532,9 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
     def close(lineno):
         missing = [n for n in index if n not in seen]
         if missing:
-            raise _fail(path, lineno, f"frame {frame_id} lacks bones {missing} (frame of line {frame_line})")
+            raise _fail(
+                path, lineno, f"frame {frame_id} lacks bones {missing} (frame of line {frame_line})"
+            )
 
     for k, raw in enumerate(lines):
         lineno = k + 1
@@ -434,10 +545,16 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
             word = t[0][1:].upper()
             if word not in ("FULLY-SPECIFIED", "DEGREES", "RADIANS") or len(t) != 1:
                 raise _fail(
-                    path, lineno, f"unexpected {' '.join(t)[:40]!r}; expected :FULLY-SPECIFIED, :DEGREES or :RADIANS"
+                    path,
+                    lineno,
+                    f"unexpected {' '.join(t)[:40]!r}; expected :FULLY-SPECIFIED, :DEGREES or :RADIANS",
                 )
             if current is not None:
-                raise _fail(path, lineno, f"{t[0]} after the first frame; expected it before line {frame_line}")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"{t[0]} after the first frame; expected it before line {frame_line}",
+                )
             if word != "FULLY-SPECIFIED":
                 degrees = word == "DEGREES"
             continue
@@ -464,11 +581,17 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
             raise _fail(path, lineno, f"bone {name!r} has {len(t) - 1} values; expected {nd}")
         vals = _floats(path, lineno, t[1:], nd, f"bone {name!r}")
         if name in seen:
-            raise _fail(path, lineno, f"bone {name!r} given twice in the frame of line {frame_line}")
+            raise _fail(
+                path, lineno, f"bone {name!r} given twice in the frame of line {frame_line}"
+            )
         seen.add(name)
         current[starts[j] : starts[j] + nd] = vals
     if current is None:
-        raise _fail(path, max(len(lines), 1), "file ends without a frame (expected a frame number, then bone lines)")
+        raise _fail(
+            path,
+            max(len(lines), 1),
+            "file ends without a frame (expected a frame number, then bone lines)",
+        )
     close(len(lines))
     frames.append(current)
     motion = np.array(frames)

@@ -74,7 +74,11 @@ def parse_bvh(path):
         i += 1
     if i >= n or toks(i)[0].upper() != "HIERARCHY" or len(toks(i)) != 1:
         found = repr(lines[i].strip()[:40]) if i < n else "the end of the file"
-        raise _fail(path, min(i + 1, max(n, 1)), f"expected 'HIERARCHY' at the start of a BVH file, found {found}")
+        raise _fail(
+            path,
+            min(i + 1, max(n, 1)),
+            f"expected 'HIERARCHY' at the start of a BVH file, found {found}",
+        )
     i += 1
     motion_line = None
     while i < n:
@@ -85,7 +89,9 @@ def parse_bvh(path):
             continue
         key = t[0].upper()
         if pending is not None and key != "{":
-            raise _fail(path, lineno, f"expected '{{' after joint {names[pending]!r}, found {t[0][:40]!r}")
+            raise _fail(
+                path, lineno, f"expected '{{' after joint {names[pending]!r}, found {t[0][:40]!r}"
+            )
         if key in ("ROOT", "JOINT") or (key == "END" and len(t) == 2 and t[1].upper() == "SITE"):
             if key == "ROOT" and (names or stack):
                 raise _fail(path, lineno, "a second ROOT is not supported")
@@ -117,12 +123,18 @@ def parse_bvh(path):
             pending = len(names) - 1
         elif key == "{":
             if pending is None or len(t) != 1:
-                raise _fail(path, lineno, "expected '{' alone on its line after a ROOT, JOINT or End Site line")
+                raise _fail(
+                    path,
+                    lineno,
+                    "expected '{' alone on its line after a ROOT, JOINT or End Site line",
+                )
             stack.append(pending)
             pending = None
         elif key == "}":
             if not stack or len(t) != 1:
-                raise _fail(path, lineno, "unmatched '}'" if not stack else "expected '}' alone on its line")
+                raise _fail(
+                    path, lineno, "unmatched '}'" if not stack else "expected '}' alone on its line"
+                )
             j = stack.pop()
             if offsets[j] is None:
                 raise _fail(path, lineno, f"joint {names[j]!r} has no OFFSET")
@@ -143,25 +155,41 @@ def parse_bvh(path):
             if channels[j]:
                 raise _fail(path, lineno, f"joint {names[j]!r} has a second CHANNELS line")
             if len(t) < 2 or not is_whole(t[1]):
-                raise _fail(path, lineno, f"CHANNELS needs a count, found {t[1] if len(t) > 1 else 'nothing'!r}")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"CHANNELS needs a count, found {t[1] if len(t) > 1 else 'nothing'!r}",
+                )
             count = int(t[1])
             chans = t[2:]
             if len(chans) != count:
-                raise _fail(path, lineno, f"CHANNELS declares {count} channels but names {len(chans)}")
+                raise _fail(
+                    path, lineno, f"CHANNELS declares {count} channels but names {len(chans)}"
+                )
             for c in chans:
                 if c.lower() not in _CHANNELS:
-                    raise _fail(path, lineno, f"unknown channel {c!r}; expected one of {', '.join(CHANNEL_NAMES)}")
+                    raise _fail(
+                        path,
+                        lineno,
+                        f"unknown channel {c!r}; expected one of {', '.join(CHANNEL_NAMES)}",
+                    )
             chans = tuple(_CHANNELS[c.lower()] for c in chans)
             if len(set(chans)) != len(chans):
                 raise _fail(path, lineno, f"joint {names[j]!r} repeats a channel: {chans}")
             channels[j] = chans
         elif key == "MOTION":
             if len(t) != 1:
-                raise _fail(path, lineno, f"expected 'MOTION' alone on its line, found {lines[i].strip()[:40]!r}")
+                raise _fail(
+                    path,
+                    lineno,
+                    f"expected 'MOTION' alone on its line, found {lines[i].strip()[:40]!r}",
+                )
             if stack:
                 open_ = stack[-1]
                 raise _fail(
-                    path, lineno, f"MOTION before the braces of joint {names[open_]!r} (line {opened[open_]}) close"
+                    path,
+                    lineno,
+                    f"MOTION before the braces of joint {names[open_]!r} (line {opened[open_]}) close",
                 )
             motion_line = i
             break
@@ -169,8 +197,10 @@ def parse_bvh(path):
             raise _fail(path, lineno, "a second HIERARCHY line")
         else:
             raise _fail(
-                path, lineno, f"unexpected {t[0][:40]!r} in HIERARCHY; expected ROOT, JOINT, End Site, '{{', '}}', "
-                "OFFSET, CHANNELS or MOTION"
+                path,
+                lineno,
+                f"unexpected {t[0][:40]!r} in HIERARCHY; expected ROOT, JOINT, End Site, '{{', '}}', "
+                "OFFSET, CHANNELS or MOTION",
             )
         i += 1
     if motion_line is None:
@@ -188,7 +218,9 @@ def parse_bvh(path):
             raise _fail(path, max(n, 1), f"file ends before the '{label.title()}:' line of MOTION")
         head, sep, value = lines[i].partition(":")
         if not sep or " ".join(head.split()).lower() != label:
-            raise _fail(path, i + 1, f"expected '{label.title()}: <value>', found {lines[i].strip()[:40]!r}")
+            raise _fail(
+                path, i + 1, f"expected '{label.title()}: <value>', found {lines[i].strip()[:40]!r}"
+            )
         header[label] = (value.strip(), i + 1)
         i += 1
     frames_txt, frames_line = header["frames"]
@@ -205,28 +237,36 @@ def parse_bvh(path):
     skeleton = Skeleton(names, parents, [o for o in offsets], list(channels), end_site)
     n_ch = skeleton.n_channels
     if n_ch == 0:
-        raise _fail(path, motion_line + 1, "no joint declares CHANNELS; expected at least one channel")
+        raise _fail(
+            path, motion_line + 1, "no joint declares CHANNELS; expected at least one channel"
+        )
     rows = []
     for k in range(i, n):
         t = lines[k].split()
         if not t:
             continue
         if len(rows) >= n_frames:
-            raise _fail(path, k + 1, f"more motion rows than 'Frames: {n_frames}' (line {frames_line})")
+            raise _fail(
+                path, k + 1, f"more motion rows than 'Frames: {n_frames}' (line {frames_line})"
+            )
         if len(t) != n_ch:
             raise _fail(
-                path, k + 1, f"motion row {len(rows)} has {len(t)} values; expected {n_ch} (one per declared channel)"
+                path,
+                k + 1,
+                f"motion row {len(rows)} has {len(t)} values; expected {n_ch} (one per declared channel)",
             )
         bad = first_bad_number(t)
         if bad is not None:
             raise DataFileError(
-                path, f"line {k + 1}, value {bad + 1}: {t[bad][:40]!r} is not a number (motion row {len(rows)})",
+                path,
+                f"line {k + 1}, value {bad + 1}: {t[bad][:40]!r} is not a number (motion row {len(rows)})",
                 line=k + 1,
             )
         rows.append(t)
     if len(rows) < n_frames:
         raise _fail(
-            path, max(n, 1),
+            path,
+            max(n, 1),
             f"file is truncated: 'Frames: {n_frames}' (line {frames_line}) but only {len(rows)} motion rows follow",
         )
     motion = np.array(rows, dtype=float)
@@ -237,7 +277,9 @@ def format_bvh(skeleton, motion, frame_time):
     """BVH text for ``skeleton`` with channel values ``motion`` (F, C)."""
     motion = np.asarray(motion, dtype=float)
     if motion.ndim != 2 or motion.shape[1] != skeleton.n_channels:
-        raise DataFileError("<bvh>", f"motion must be (frames, {skeleton.n_channels}); got {motion.shape}")
+        raise DataFileError(
+            "<bvh>", f"motion must be (frames, {skeleton.n_channels}); got {motion.shape}"
+        )
     children = [[] for _ in skeleton.joint_names]
     for j, p in enumerate(skeleton.parents):
         if p >= 0:
@@ -249,7 +291,9 @@ def format_bvh(skeleton, motion, frame_time):
         if skeleton.end_site[j]:
             out.append(f"{ind}End Site")
         else:
-            out.append(f"{ind}{'ROOT' if skeleton.parents[j] < 0 else 'JOINT'} {skeleton.joint_names[j]}")
+            out.append(
+                f"{ind}{'ROOT' if skeleton.parents[j] < 0 else 'JOINT'} {skeleton.joint_names[j]}"
+            )
         out.append(f"{ind}{{")
         out.append(f"{ind}  OFFSET " + " ".join(repr(float(v)) for v in skeleton.offsets[j]))
         if not skeleton.end_site[j]:

@@ -27,29 +27,71 @@ from .skeleton import ROTATION_AXES
 JOINT_MAPS = {
     # cgspeed Daz/Poser-friendly CMU BVH: the 17 joints that move + rCollar, lCollar.
     "daz": [
-        "hip", "abdomen", "chest", "neck", "head",
-        "rCollar", "rShldr", "rForeArm", "rHand",
-        "lCollar", "lShldr", "lForeArm", "lHand",
-        "rThigh", "rShin", "rFoot",
-        "lThigh", "lShin", "lFoot",
+        "hip",
+        "abdomen",
+        "chest",
+        "neck",
+        "head",
+        "rCollar",
+        "rShldr",
+        "rForeArm",
+        "rHand",
+        "lCollar",
+        "lShldr",
+        "lForeArm",
+        "lHand",
+        "rThigh",
+        "rShin",
+        "rFoot",
+        "lThigh",
+        "lShin",
+        "lFoot",
     ],
     # cgspeed 3dsMax-friendly CMU BVH (topology of the CMU ASF skeleton). Of the six spine/neck joints the
     # ones at the Daz joints' heights are used (lowerback ~ abdomen, Chest ~ chest, Neck ~ neck); the toes
     # are left out as the Daz skeleton has none that move.
     "3dsmax": [
-        "Hips", "lowerback", "Chest", "Neck", "Head",
-        "RightCollar", "RightShoulder", "RightElbow", "RightWrist",
-        "LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist",
-        "RightHip", "RightKnee", "RightAnkle",
-        "LeftHip", "LeftKnee", "LeftAnkle",
+        "Hips",
+        "lowerback",
+        "Chest",
+        "Neck",
+        "Head",
+        "RightCollar",
+        "RightShoulder",
+        "RightElbow",
+        "RightWrist",
+        "LeftCollar",
+        "LeftShoulder",
+        "LeftElbow",
+        "LeftWrist",
+        "RightHip",
+        "RightKnee",
+        "RightAnkle",
+        "LeftHip",
+        "LeftKnee",
+        "LeftAnkle",
     ],
     # CMU ASF/AMC bone names (the 3dsMax release renames these: upperback -> Chest, upperneck -> Neck, ...).
     "asf": [
-        "root", "lowerback", "upperback", "upperneck", "head",
-        "rclavicle", "rhumerus", "rradius", "rwrist",
-        "lclavicle", "lhumerus", "lradius", "lwrist",
-        "rfemur", "rtibia", "rfoot",
-        "lfemur", "ltibia", "lfoot",
+        "root",
+        "lowerback",
+        "upperback",
+        "upperneck",
+        "head",
+        "rclavicle",
+        "rhumerus",
+        "rradius",
+        "rwrist",
+        "lclavicle",
+        "lhumerus",
+        "lradius",
+        "lwrist",
+        "rfemur",
+        "rtibia",
+        "rfoot",
+        "lfemur",
+        "ltibia",
+        "lfoot",
     ],
 }
 
@@ -79,7 +121,9 @@ def resolve_joint_map(joint_map, skeleton_kind, joint_names, source="<skeleton>"
     if joint_map is None:
         kind = skeleton_kind or detect_skeleton_kind(joint_names, source)
         if kind not in JOINT_MAPS:
-            raise InputError(f"{source}: skeleton_kind must be one of {sorted(JOINT_MAPS)}; got {kind!r}")
+            raise InputError(
+                f"{source}: skeleton_kind must be one of {sorted(JOINT_MAPS)}; got {kind!r}"
+            )
         joint_map = JOINT_MAPS[kind]
     joint_map = list(joint_map)
     if len(set(joint_map)) != len(joint_map):
@@ -98,7 +142,9 @@ def pose_columns(skeleton, joint_map):
     cols, names = [], []
     for jn in joint_map:
         j = skeleton.index(jn)
-        rot = [(starts[j] + k, ch) for k, ch in enumerate(skeleton.channels[j]) if ch in ROTATION_AXES]
+        rot = [
+            (starts[j] + k, ch) for k, ch in enumerate(skeleton.channels[j]) if ch in ROTATION_AXES
+        ]
         if len(rot) > 3:
             raise InputError(f"joint {jn!r} has {len(rot)} rotation channels; expected at most 3")
         if len(rot) < 3:
@@ -147,7 +193,9 @@ class Motion:
         """The frames ``idx`` (indices into this motion) as a new Motion."""
         idx = np.asarray(idx, dtype=int)
         if idx.size and (idx.min() < 0 or idx.max() >= self.n_frames):
-            raise InputError(f"frame indices must be in [0, {self.n_frames}); got [{idx.min()}, {idx.max()}]")
+            raise InputError(
+                f"frame indices must be in [0, {self.n_frames}); got [{idx.min()}, {idx.max()}]"
+            )
         return replace(
             self,
             positions=self.positions[idx],
@@ -176,7 +224,9 @@ def read_trial(path, asf=None):
     raise DataFileError(path, f"unknown motion file type {suffix!r}; expected .bvh or .amc")
 
 
-def load_motion(paths, skeleton_kind=None, joint_map=None, drop_first_frame=True, asf=None, skip_frames=None):
+def load_motion(
+    paths, skeleton_kind=None, joint_map=None, drop_first_frame=True, asf=None, skip_frames=None
+):
     """Parse trials, concatenate them and return a :class:`Motion`.
 
     ``paths``: one path or a list (BVH, or AMC with the ASF skeleton ``asf``); all trials must share one
@@ -199,25 +249,40 @@ def load_motion(paths, skeleton_kind=None, joint_map=None, drop_first_frame=True
     skel = first.skeleton
     for p, t in zip(paths[1:], trials[1:]):
         if not t.skeleton.same_topology(skel):
-            raise DataFileError(p, f"its skeleton differs from that of {paths[0]}; concatenated trials must share one")
+            raise DataFileError(
+                p,
+                f"its skeleton differs from that of {paths[0]}; concatenated trials must share one",
+            )
         if not np.isclose(t.frame_time, first.frame_time, rtol=1e-3):
-            raise DataFileError(p, f"frame time {t.frame_time} differs from {first.frame_time} of {paths[0]}")
+            raise DataFileError(
+                p, f"frame time {t.frame_time} differs from {first.frame_time} of {paths[0]}"
+            )
     kind = skeleton_kind
     if joint_map is None and kind is None:
-        kind = "asf" if hasattr(first, "asf") else detect_skeleton_kind(skel.joint_names, str(paths[0]))
+        kind = (
+            "asf"
+            if hasattr(first, "asf")
+            else detect_skeleton_kind(skel.joint_names, str(paths[0]))
+        )
     pose_joints = resolve_joint_map(joint_map, kind, skel.joint_names, str(paths[0]))
     cols, angle_names = pose_columns(skel, pose_joints)
 
     positions, angles, tidx, tfr = [], [], [], []
     if skip_frames is None:
         start = 1 if drop_first_frame else 0
-    elif isinstance(skip_frames, (bool, float)) or not isinstance(skip_frames, (int, np.integer)) or skip_frames < 0:
+    elif (
+        isinstance(skip_frames, (bool, float))
+        or not isinstance(skip_frames, (int, np.integer))
+        or skip_frames < 0
+    ):
         raise InputError(f"skip_frames must be an integer >= 0; got {skip_frames!r}")
     else:
         start = int(skip_frames)
     for k, (p, t) in enumerate(zip(paths, trials)):
         if t.n_frames <= start:
-            raise DataFileError(p, f"has {t.n_frames} frame(s); nothing is left after dropping the first {start}")
+            raise DataFileError(
+                p, f"has {t.n_frames} frame(s); nothing is left after dropping the first {start}"
+            )
         motion = t.motion[start:]
         pos = _positions_of(t, motion)
         ang = np.where(cols >= 0, motion[:, np.maximum(cols, 0)], 0.0)

@@ -40,11 +40,17 @@ class Skeleton:
             self.end_site = np.zeros(len(self.joint_names), dtype=bool)
         self.end_site = np.asarray(self.end_site, dtype=bool)
         n = len(self.joint_names)
-        if not (len(self.parents) == len(self.offsets) == len(self.channels) == len(self.end_site) == n):
-            raise InputError("Skeleton: joint_names, parents, offsets, channels and end_site must have equal length")
+        if not (
+            len(self.parents) == len(self.offsets) == len(self.channels) == len(self.end_site) == n
+        ):
+            raise InputError(
+                "Skeleton: joint_names, parents, offsets, channels and end_site must have equal length"
+            )
         for j, p in enumerate(self.parents):
             if not (p == -1 if j == 0 else 0 <= p < j):
-                raise InputError(f"Skeleton: joint {self.joint_names[j]!r} has parent index {p}; parents must precede children")
+                raise InputError(
+                    f"Skeleton: joint {self.joint_names[j]!r} has parent index {p}; parents must precede children"
+                )
 
     @property
     def n_channels(self):

@@ -87,8 +87,9 @@ def keep_freed_memory(mmap_threshold=1 << 26, trim_threshold=1 << 27):
     except (OSError, AttributeError):
         return False
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    return bool(mallopt(_M_MMAP_THRESHOLD, int(mmap_threshold))) and bool(mallopt(_M_TRIM_THRESHOLD,
-                                                                                      int(trim_threshold)))
+    return bool(mallopt(_M_MMAP_THRESHOLD, int(mmap_threshold))) and bool(
+        mallopt(_M_TRIM_THRESHOLD, int(trim_threshold))
+    )
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -329,7 +330,9 @@ def _code_randoms(rng, N, K, Ut, Zt):
 
 
 @njit(cache=True, fastmath=_VEC, error_model="numpy")
-def _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms):
+def _code_block(
+    Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
+):
     """The (b, s) block update of atoms k0 .. k0 + nb - 1 for all N points, vectorized over the points.
 
     ``Ct[j, i]`` holds ``d_{k0+j} . r_i`` for the residual before this block; after atom k's draw the later
@@ -390,7 +393,6 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     Shapes: R (N, M), D (K, M), norms (K,), B (N, K) int8, S, W (N, K); all updated in place but D, W.
     """
     N, K = B.shape
-    M = R.shape[1]
     tau = np.empty(K)
     half_log = np.empty(K)
     sd_on = np.empty(K)
@@ -417,7 +419,9 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         Db = D[k0:k1]
         Ct = Db @ Rt
         Gb = Db @ Db.T
-        _code_block(Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms)
+        _code_block(
+            Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
+        )
         R += Dt[:nb].T @ Db
     _transpose_into(St, S)
     Bf = np.empty((N, K))
@@ -673,7 +677,9 @@ def _float_bits_as_int(typingctx, x):
 def _exp_neg(a):
     """exp(-a) for a >= 0 (a > _EXP_CLAMP gives exp(-_EXP_CLAMP)); relative error about 1e-16."""
     a = min(a, _EXP_CLAMP)
-    kd = np.floor(a * _LOG2E + 0.5)  # k as a double: no float-int conversion, which AVX2 lacks for vectors
+    kd = np.floor(
+        a * _LOG2E + 0.5
+    )  # k as a double: no float-int conversion, which AVX2 lacks for vectors
     q = (kd * _LN2_HI - a) + kd * _LN2_LO  # -r
     p = 0.0
     for c in _EXP_TAYLOR:
@@ -784,8 +790,11 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
             else:
                 lr += _log_sigmoid(Zt[k, i] * Wp[k, i]) - _log_sigmoid(Zt[k, i] * Wt[k, i])
             if exact:
-                lr += ((Wt[k, i] - w_mean) * Lamp[k, i] - (Wp[k, i] - w_mean) * Lam[k, i]
-                       + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i]))
+                lr += (
+                    (Wt[k, i] - w_mean) * Lamp[k, i]
+                    - (Wp[k, i] - w_mean) * Lam[k, i]
+                    + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i])
+                )
             else:
                 lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
         lr += np.log(prod)
@@ -877,8 +886,29 @@ def log_likelihood_separate(R, Mx, g_nx, g_ny):
 
 
 @njit(cache=True)
-def _sweep(V, R, D, norms, B, S, W, prec, Sigma, Lw, Mx, a0, b0, a_xy, b_xy, w_mean, separate, w_code, atom_code,
-           rng, stats):
+def _sweep(
+    V,
+    R,
+    D,
+    norms,
+    B,
+    S,
+    W,
+    prec,
+    Sigma,
+    Lw,
+    Mx,
+    a0,
+    b0,
+    a_xy,
+    b_xy,
+    w_mean,
+    separate,
+    w_code,
+    atom_code,
+    rng,
+    stats,
+):
     """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
     ``stats = [log-likelihood, number of active atoms, fraction of moved logit vectors]`` (MH: accepted)."""
     if separate:
@@ -972,7 +1002,9 @@ class BSRHyper(NamedTuple):
     @property
     def noise_ab(self):
         """(shape, rate) of the noise precisions' Gamma prior."""
-        return (self.a0 if self.a_xy is None else self.a_xy), (self.b0 if self.b_xy is None else self.b_xy)
+        return (self.a0 if self.a_xy is None else self.a_xy), (
+            self.b0 if self.b_xy is None else self.b_xy
+        )
 
 
 def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
@@ -992,9 +1024,29 @@ def gibbs_sweep(state, data, hyper, rng, w_update="mh", atom_update="block"):
         raise InputError(f"noise must be one of {sorted(NOISE_MODELS)}; got {hyper.noise!r}")
     a_xy, b_xy = hyper.noise_ab
     stats = np.zeros(3)
-    _sweep(data.V, state.R, state.D, state.norms, state.B, state.S, state.W, state.prec, data.Sigma, data.Lw,
-           data.Mx, float(hyper.a0), float(hyper.b0), float(a_xy), float(b_xy), float(hyper.w_mean),
-           hyper.noise == "separate", W_UPDATES[w_update], ATOM_UPDATES[atom_update], rng, stats)
+    _sweep(
+        data.V,
+        state.R,
+        state.D,
+        state.norms,
+        state.B,
+        state.S,
+        state.W,
+        state.prec,
+        data.Sigma,
+        data.Lw,
+        data.Mx,
+        float(hyper.a0),
+        float(hyper.b0),
+        float(a_xy),
+        float(b_xy),
+        float(hyper.w_mean),
+        hyper.noise == "separate",
+        W_UPDATES[w_update],
+        ATOM_UPDATES[atom_update],
+        rng,
+        stats,
+    )
     return state, stats
 
 
@@ -1123,7 +1175,9 @@ def _normal(state):
         x = np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0) * _ZIG_X[i]
         if x < _ZIG_X[i + 1]:
             return state, -x if neg else x
-        if i == 0:  # the tail beyond r (Marsaglia 1964): x = r + e1 / r, accepted if 2 e2 > (e1 / r)^2
+        if (
+            i == 0
+        ):  # the tail beyond r (Marsaglia 1964): x = r + e1 / r, accepted if 2 e2 > (e1 / r)^2
             while True:
                 state, u1 = _uniform(state)
                 state, u2 = _uniform(state)
@@ -1132,7 +1186,9 @@ def _normal(state):
                     break
             x = ZIG_R + xt
             return state, -x if neg else x
-        state, u = _uniform(state)  # the wedge of layer i: accept if y ~ U[f(x_i), f(x_i+1)] is under f(x)
+        state, u = _uniform(
+            state
+        )  # the wedge of layer i: accept if y ~ U[f(x_i), f(x_i+1)] is under f(x)
         if _ZIG_F[i] + u * (_ZIG_F[i + 1] - _ZIG_F[i]) < np.exp(-0.5 * x * x):
             return state, -x if neg else x
 
@@ -1254,7 +1310,7 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
         _transpose_into(Wp, Wt)
         for k0 in range(0, K, nbmax):  # the Gram matrices of the atom blocks, once per sample
             k1 = min(k0 + nbmax, K)
-            Gbs[k0 // nbmax, :k1 - k0, :k1 - k0] = Dxl[k0:k1] @ Dxl[k0:k1].T
+            Gbs[k0 // nbmax, : k1 - k0, : k1 - k0] = Dxl[k0:k1] @ Dxl[k0:k1].T
         At[:, :] = 0.0
         Rt = R.T
         for _ in range(n_sweeps):
@@ -1263,8 +1319,21 @@ def predict_kernel(Xt, nbr, Dx, Dy, Ws, gs, gxy, n_sweeps, seeds, out_y, out_ll)
                 nb = k1 - k0
                 Db = Dxl[k0:k1]
                 Ct = Db @ Rt
-                _predict_block(Ct, Gbs[k0 // nbmax], At, Dt, Wt, streams, k0, nb, nx, gain, half_tau, half_log,
-                               sd_on)
+                _predict_block(
+                    Ct,
+                    Gbs[k0 // nbmax],
+                    At,
+                    Dt,
+                    Wt,
+                    streams,
+                    k0,
+                    nb,
+                    nx,
+                    gain,
+                    half_tau,
+                    half_log,
+                    sd_on,
+                )
                 R += Dt[:nb].T @ Db
         Yl = At.T @ np.ascontiguousarray(Dy[l])
         for t in range(T):

@@ -20,7 +20,13 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..errors import InputError, SamplerError
 from . import _bsr_kernels as kern
-from .scaling import InputScaler, check_finite_input, check_input_scaling, clip_to_bounds, output_bounds
+from .scaling import (
+    InputScaler,
+    check_finite_input,
+    check_input_scaling,
+    clip_to_bounds,
+    output_bounds,
+)
 
 logger = logging.getLogger("bsrbench.models.bsr")
 
@@ -38,7 +44,9 @@ def _check_int(name, value, low, high=None):
 
 
 def _check_positive(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
         raise InputError(f"{name} must be a positive number; got {value!r}")
     if not (np.isfinite(value) and value > 0):
         raise InputError(f"{name} must be a positive finite number; got {value!r}")
@@ -46,7 +54,9 @@ def _check_positive(name, value):
 
 
 def _check_finite(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
         raise InputError(f"{name} must be a finite number; got {value!r}")
     if not np.isfinite(value):
         raise InputError(f"{name} must be a finite number; got {value!r}")
@@ -223,7 +233,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             )
         _check_int("n_predict_sweeps", self.n_predict_sweeps, 1)
         if not isinstance(self.w_update, str) or self.w_update not in kern.W_UPDATES:
-            raise InputError(f"w_update must be one of {sorted(kern.W_UPDATES)}; got {self.w_update!r}")
+            raise InputError(
+                f"w_update must be one of {sorted(kern.W_UPDATES)}; got {self.w_update!r}"
+            )
         if not isinstance(self.atom_update, str) or self.atom_update not in kern.ATOM_UPDATES:
             raise InputError(
                 f"atom_update must be one of {sorted(kern.ATOM_UPDATES)}; got {self.atom_update!r}"
@@ -233,7 +245,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 f"prediction_weighting must be 'uniform' or 'likelihood'; got {self.prediction_weighting!r}"
             )
         if self.prediction not in PREDICTIONS:
-            raise InputError(f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}")
+            raise InputError(
+                f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}"
+            )
         _check_positive("a0", self.a0)
         _check_positive("b0", self.b0)
         for name in ("a_xy", "b_xy"):
@@ -241,7 +255,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 _check_positive(name, getattr(self, name))
         _check_finite("w_prior_mean", self.w_prior_mean)
         if not isinstance(self.noise, str) or self.noise not in kern.NOISE_MODELS:
-            raise InputError(f"noise must be one of {sorted(kern.NOISE_MODELS)}; got {self.noise!r}")
+            raise InputError(
+                f"noise must be one of {sorted(kern.NOISE_MODELS)}; got {self.noise!r}"
+            )
         if not isinstance(self.standardize, (bool, np.bool_)):
             raise InputError(f"standardize must be True or False; got {self.standardize!r}")
         check_input_scaling(self.input_scaling)
@@ -260,7 +276,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         self._check_params()
         nx, ny = getattr(X, "shape", None), getattr(Y, "shape", None)
         if nx and ny and len(nx) >= 1 and len(ny) >= 1 and nx[0] != ny[0]:
-            raise InputError(f"X and Y must have the same number of rows; got X with {nx[0]} and Y with {ny[0]}")
+            raise InputError(
+                f"X and Y must have the same number of rows; got X with {nx[0]} and Y with {ny[0]}"
+            )
         check_finite_input(self, X, "fit")
         check_finite_input(self, Y, "fit", name="Y")
         X, Y = validate_data(self, X, Y, multi_output=True, y_numeric=True, dtype=np.float64)
@@ -297,9 +315,12 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         state = self._initial_state(V, Mx, K, rng, float(self.w_prior_mean))
         data = kern.BSRData(V=V, Mx=Mx, Sigma=Sigma, Lw=np.ascontiguousarray(Lw))
         hyper = kern.BSRHyper(
-            a0=float(self.a0), b0=float(self.b0),
-            a_xy=None if self.a_xy is None else float(self.a_xy), b_xy=None if self.b_xy is None else float(self.b_xy),
-            w_mean=float(self.w_prior_mean), noise=self.noise,
+            a0=float(self.a0),
+            b0=float(self.b0),
+            a_xy=None if self.a_xy is None else float(self.a_xy),
+            b_xy=None if self.b_xy is None else float(self.b_xy),
+            w_mean=float(self.w_prior_mean),
+            noise=self.noise,
         )
 
         n_keep = (self.n_iter - self.n_burn_in) // self.thin  # >= 1 (_check_params)
@@ -311,7 +332,17 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         gxy = np.empty(n_keep)
         gnx = np.empty(n_keep)
         gny = np.empty(n_keep)
-        names = ("log_likelihood", "g_xy", "g_s", "g_x", "g_y", "g_nx", "g_ny", "active_atoms", "acceptance")
+        names = (
+            "log_likelihood",
+            "g_xy",
+            "g_s",
+            "g_x",
+            "g_y",
+            "g_nx",
+            "g_ny",
+            "active_atoms",
+            "acceptance",
+        )
         trace = {name: np.empty(self.n_iter) for name in names}
         if self.noise == "shared":  # g_nx = g_ny = g_xy: not traced twice
             del trace["g_nx"], trace["g_ny"]
@@ -322,7 +353,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         slot = 0
         for it in range(self.n_iter):
             try:
-                _, stats = kern.gibbs_sweep(state, data, hyper, rng, self.w_update, self.atom_update)
+                _, stats = kern.gibbs_sweep(
+                    state, data, hyper, rng, self.w_update, self.atom_update
+                )
             except (np.linalg.LinAlgError, ZeroDivisionError, ValueError) as exc:
                 raise SamplerError(
                     f"BayesianSR: non-finite or degenerate sampler state at sweep {it} ({exc}); "
@@ -330,13 +363,19 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                     f"(standardize=True) and the hyper-priors a0, b0"
                 ) from exc
             g_s, g_xy, g_x, g_y, g_nx, g_ny = state.prec
-            if not (np.all(np.isfinite(stats)) and np.all(np.isfinite(state.prec)) and np.all(state.prec > 0)):
+            if not (
+                np.all(np.isfinite(stats))
+                and np.all(np.isfinite(state.prec))
+                and np.all(state.prec > 0)
+            ):
                 raise SamplerError(
                     f"BayesianSR: non-finite or degenerate sampler state at sweep {it}: "
                     f"log-likelihood={stats[0]!r}, g_s={g_s!r}, g_xy={g_xy!r}, g_x={g_x!r}, g_y={g_y!r}; "
                     f"check the scale of X and Y (standardize=True) and the hyper-priors a0, b0"
                 )
-            for name, val in zip(names, (stats[0], g_xy, g_s, g_x, g_y, g_nx, g_ny, stats[1], stats[2])):
+            for name, val in zip(
+                names, (stats[0], g_xy, g_s, g_x, g_y, g_nx, g_ny, stats[1], stats[2])
+            ):
                 if name in trace:
                     trace[name][it] = val
             if it in keep_at:
@@ -349,11 +388,26 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 logger.log(
                     level,
                     "sweep %d/%d: log-lik %.1f, g_xy %.3g, g_s %.3g, active atoms %d, acceptance %.2f (%.1f s)",
-                    it + 1, self.n_iter, stats[0], g_xy, g_s, int(stats[1]), stats[2], time.perf_counter() - t0,
+                    it + 1,
+                    self.n_iter,
+                    stats[0],
+                    g_xy,
+                    g_s,
+                    int(stats[1]),
+                    stats[2],
+                    time.perf_counter() - t0,
                 )
         self.fit_seconds_ = time.perf_counter() - t0
         self.trace_ = trace
-        self.samples_ = {"Dx": Dx, "Dy": Dy, "W": Ws, "g_s": gs, "g_xy": gxy, "g_nx": gnx, "g_ny": gny}
+        self.samples_ = {
+            "Dx": Dx,
+            "Dy": Dy,
+            "W": Ws,
+            "g_s": gs,
+            "g_xy": gxy,
+            "g_nx": gnx,
+            "g_ny": gny,
+        }
         self.X_train_ = Xs
         return self
 
@@ -383,7 +437,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     def _predict_draws(self, X, n_neighbors):
         """Per test point and retained sample: standardized y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g I)."""
         if self.prediction not in PREDICTIONS:
-            raise InputError(f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}")
+            raise InputError(
+                f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}"
+            )
         j = self.n_neighbors if n_neighbors is None else n_neighbors
         N = self.X_train_.shape[0]
         j = _check_int("n_neighbors", j, 1, N)
@@ -395,11 +451,23 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         out_y = np.empty((T, L, My))
         out_ll = np.empty((T, L))
         if self.prediction == "paper-text":
-            kern.predict_kernel_prior_codes(Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_nx"], seeds, out_y,
-                                            out_ll)
+            kern.predict_kernel_prior_codes(
+                Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_nx"], seeds, out_y, out_ll
+            )
         else:
-            kern.predict_kernel(Xs, nbr, s["Dx"], s["Dy"], s["W"], s["g_s"], s["g_nx"], int(self.n_predict_sweeps),
-                                seeds, out_y, out_ll)
+            kern.predict_kernel(
+                Xs,
+                nbr,
+                s["Dx"],
+                s["Dy"],
+                s["W"],
+                s["g_s"],
+                s["g_nx"],
+                int(self.n_predict_sweeps),
+                seeds,
+                out_y,
+                out_ll,
+            )
         return out_y, out_ll
 
     def _weights(self, out_ll):
@@ -439,7 +507,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False, dtype=np.float64)
         ys, ws = [], []
         for i in range(0, max(X.shape[0], 1), _CHUNK):
-            out_y, out_ll = self._predict_draws(X[i:i + _CHUNK], n_neighbors)
+            out_y, out_ll = self._predict_draws(X[i : i + _CHUNK], n_neighbors)
             ys.append(out_y * self.y_scale_ + self.y_mean_)
             ws.append(self._weights(out_ll))
         return np.concatenate(ys), np.concatenate(ws)
@@ -456,7 +524,10 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         check_is_fitted(self, "samples_")
         check_finite_input(self, X)
         X = validate_data(self, X, reset=False, dtype=np.float64)
-        parts = [self._predict_chunk(X[i:i + _CHUNK], n_neighbors) for i in range(0, max(X.shape[0], 1), _CHUNK)]
+        parts = [
+            self._predict_chunk(X[i : i + _CHUNK], n_neighbors)
+            for i in range(0, max(X.shape[0], 1), _CHUNK)
+        ]
         y = clip_to_bounds(np.concatenate([p[0] for p in parts]), self.y_bounds_)
         std = np.concatenate([p[1] for p in parts])
         if self.y_ndim_ == 1:

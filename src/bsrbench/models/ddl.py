@@ -88,7 +88,7 @@ def _coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
     C = None
     prev = np.inf
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 - the count is returned
         C = _fista_codes(Z, D, alpha, C0=C, n_iter=60)
         A = C.T @ C
         B = Z.T @ C  # (p, K)
@@ -179,7 +179,9 @@ class DDL(RegressorMixin, BaseEstimator):
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
         self._check_params(n_samples=X.shape[0])
-        rng = np.random.default_rng(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
+        rng = np.random.default_rng(
+            check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
+        )
         self.n_outputs_ = Y.shape[1]
         Xn = _normalize_rows(X, self.normalize)
         # the feature block: each feature centred, all divided by one pooled scale (the shared "pooled"

@@ -23,7 +23,9 @@ def _as_traces(obj):
     for i, item in enumerate(items):
         tr = getattr(item, "trace_", item)
         if not isinstance(tr, dict) or not tr:
-            raise InputError(f"chain {i}: expected a fitted BayesianSR or a dict of per-sweep traces; got {type(item)}")
+            raise InputError(
+                f"chain {i}: expected a fitted BayesianSR or a dict of per-sweep traces; got {type(item)}"
+            )
         out.append(tr)
     return out
 
@@ -32,7 +34,9 @@ def _stack(traces, name, burn_in):
     arrs = [np.asarray(tr[name], dtype=float) for tr in traces]
     n = min(a.shape[0] for a in arrs)
     if n - burn_in < 4:
-        raise InputError(f"trace {name!r}: need at least 4 sweeps after burn_in={burn_in}; got {n - burn_in}")
+        raise InputError(
+            f"trace {name!r}: need at least 4 sweeps after burn_in={burn_in}; got {n - burn_in}"
+        )
     return np.stack([a[burn_in:n] for a in arrs])  # (chain, draw)
 
 
@@ -46,7 +50,11 @@ def chain_summary(estimators_or_traces, burn_in=None, names=SCALAR_TRACES):
     import arviz as az
     import pandas as pd
 
-    items = estimators_or_traces if isinstance(estimators_or_traces, (list, tuple)) else [estimators_or_traces]
+    items = (
+        estimators_or_traces
+        if isinstance(estimators_or_traces, (list, tuple))
+        else [estimators_or_traces]
+    )
     traces = _as_traces(items)
     if burn_in is None:
         burn_in = min(int(getattr(it, "n_burn_in", 0)) for it in items)
@@ -56,14 +64,21 @@ def chain_summary(estimators_or_traces, burn_in=None, names=SCALAR_TRACES):
             continue
         x = _stack(traces, name, int(burn_in))
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # constant traces (e.g. ESS acceptance = 1) give NaN, on purpose
+            warnings.simplefilter(
+                "ignore"
+            )  # constant traces (e.g. ESS acceptance = 1) give NaN, on purpose
             ds = az.convert_to_dataset(x)  # (chain, draw) -> variable "x"
             ess_b = float(az.ess(ds, method="bulk")["x"].values)
             ess_t = float(az.ess(ds, method="tail")["x"].values)
             rhat = float(az.rhat(ds)["x"].values)
         rows[name] = {
-            "mean": float(x.mean()), "sd": float(x.std()), "ess_bulk": ess_b, "ess_tail": ess_t, "r_hat": rhat,
-            "n_chains": x.shape[0], "n_draws": x.shape[1],
+            "mean": float(x.mean()),
+            "sd": float(x.std()),
+            "ess_bulk": ess_b,
+            "ess_tail": ess_t,
+            "r_hat": rhat,
+            "n_chains": x.shape[0],
+            "n_draws": x.shape[1],
         }
     return pd.DataFrame.from_dict(rows, orient="index")
 
@@ -76,18 +91,28 @@ def plot_traces(estimators_or_traces, path_or_ax=None, names=SCALAR_TRACES, burn
     """
     import matplotlib
 
-    items = estimators_or_traces if isinstance(estimators_or_traces, (list, tuple)) else [estimators_or_traces]
+    items = (
+        estimators_or_traces
+        if isinstance(estimators_or_traces, (list, tuple))
+        else [estimators_or_traces]
+    )
     traces = _as_traces(items)
     names = [n for n in names if all(n in tr for tr in traces)]
     if burn_in is None:
         burn_in = min(int(getattr(it, "n_burn_in", 0)) for it in items)
     fig = None
-    if path_or_ax is None or isinstance(path_or_ax, (str, bytes)) or hasattr(path_or_ax, "__fspath__"):
+    if (
+        path_or_ax is None
+        or isinstance(path_or_ax, (str, bytes))
+        or hasattr(path_or_ax, "__fspath__")
+    ):
         if path_or_ax is not None:
             matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
-        fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.6 * len(names)), sharex=True, squeeze=False)
+        fig, axes = plt.subplots(
+            len(names), 1, figsize=(7, 1.6 * len(names)), sharex=True, squeeze=False
+        )
         axes = axes[:, 0]
     else:
         axes = np.ravel(path_or_ax)

@@ -18,13 +18,21 @@ from sklearn.neighbors import KNeighborsRegressor
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..errors import InputError
-from .scaling import InputScaler, check_finite_input, check_input_scaling, clip_to_bounds, output_bounds
+from .scaling import (
+    InputScaler,
+    check_finite_input,
+    check_input_scaling,
+    clip_to_bounds,
+    output_bounds,
+)
 
 # --------------------------------------------------------------------------------------------------------
 # shared helpers
 
 
-def _check_number(name, value, *, low=None, high=None, low_open=False, integer=False, none_ok=False):
+def _check_number(
+    name, value, *, low=None, high=None, low_open=False, integer=False, none_ok=False
+):
     """Validate a scalar hyper-parameter; raise ``InputError`` naming it, its value and the allowed range."""
     if value is None and none_ok:
         return None
@@ -177,7 +185,9 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
     def predict(self, X, n_neighbors=None):
         """Predict; ``n_neighbors`` overrides the fitted setting for this call."""
         X = _validate_predict(self, X)
-        k = self._check_k(self.n_neighbors if n_neighbors is None else n_neighbors, self.Y_train_.shape[0])
+        k = self._check_k(
+            self.n_neighbors if n_neighbors is None else n_neighbors, self.Y_train_.shape[0]
+        )
         dist, ind = self.knn_.kneighbors(X, n_neighbors=k)
         Yn = self.Y_train_[ind]  # (n, k, d)
         if self.weights == "uniform":
@@ -246,7 +256,10 @@ class RidgeRegressor(RegressorMixin, BaseEstimator):
 
 
 DEFAULT_GRID = {
-    "NearestNeighbourRegressor": {"n_neighbors": [1, 2, 3, 5, 8], "weights": ["uniform", "distance"]},
+    "NearestNeighbourRegressor": {
+        "n_neighbors": [1, 2, 3, 5, 8],
+        "weights": ["uniform", "distance"],
+    },
     "RidgeRegressor": {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]},
 }
 """Hyper-parameter grids used by the study for the two references (keyed by class name)."""

@@ -171,7 +171,9 @@ class RVM(RegressorMixin, BaseEstimator):
         D = T.shape[1]
 
         self.kernel_width_ = float(self.width_scale) * _median_distance(X)
-        Phi = np.column_stack([np.ones(n), np.exp(-_sq_dists(X, X) / (2.0 * self.kernel_width_**2))])
+        Phi = np.column_stack(
+            [np.ones(n), np.exp(-_sq_dists(X, X) / (2.0 * self.kernel_width_**2))]
+        )
         G_full = Phi.T @ Phi
         R_full = Phi.T @ T
         M = Phi.shape[1]
@@ -183,7 +185,7 @@ class RVM(RegressorMixin, BaseEstimator):
         beta = np.full(B, 100.0 / t_var)  # noise std = 10% of the output std
         converged = False
         it = 0
-        for it in range(1, int(self.max_iter) + 1):
+        for it in range(1, int(self.max_iter) + 1):  # noqa: B007 - the count is kept
             G = G_full[np.ix_(active, active)]
             R = R_full[active]
             Mu, Linv, diagS = _posterior(G, R, alpha, beta)
@@ -238,7 +240,9 @@ class RVM(RegressorMixin, BaseEstimator):
         beta = self.beta_ if self.beta_.shape[0] == 1 else self.beta_[inf]
         var = var_w + 1.0 / beta[None, :]
         std = np.zeros_like(mean)
-        std[:, inf] = np.sqrt(np.broadcast_to(var, (mean.shape[0], int(inf.sum())))) * self.y_scale_[inf]
+        std[:, inf] = (
+            np.sqrt(np.broadcast_to(var, (mean.shape[0], int(inf.sum())))) * self.y_scale_[inf]
+        )
         return _format_output(self, mean), _format_output(self, std, clip=False)
 
 
@@ -248,4 +252,3 @@ DEFAULT_GRID = {"width_scale": [0.25, 0.5, 1.0]}
 MacKay's updates creep slowly on basis functions whose precision grows without bound; on the hsc features
 predictions after 100-300 iterations differ from those after 1000 by < 0.05 degrees (acrobatics, N=200),
 hence the default ``max_iter=300``, ``tol=1e-2``."""
-

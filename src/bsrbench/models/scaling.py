@@ -122,7 +122,9 @@ class InputScaler(TransformerMixin, BaseEstimator):
                 med = float(np.median(std))
                 floor = BIN_FLOOR * med if med > 0 else (float(std.max()) if std.max() > 0 else 1.0)
                 scale = np.maximum(std, floor)
-                scale[scale == 0] = 1.0  # a constant bin (only with BIN_FLOOR = 0): centred, not scaled
+                scale[scale == 0] = (
+                    1.0  # a constant bin (only with BIN_FLOOR = 0): centred, not scaled
+                )
             self.scaler_.scale_ = scale
         self.n_features_in_ = self.scaler_.n_features_in_
         return self

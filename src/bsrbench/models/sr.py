@@ -55,7 +55,9 @@ def _sparse_codes(D, B, alpha, positive, solver, max_iter, tol):
                 tol=tol,
             )
         else:
-            model = LassoLars(alpha=alpha, fit_intercept=False, positive=positive, max_iter=max_iter)
+            model = LassoLars(
+                alpha=alpha, fit_intercept=False, positive=positive, max_iter=max_iter
+            )
         model.fit(D.T, B.T)
     C = np.asarray(model.coef_, dtype=float)
     return C.reshape(B.shape[0], D.shape[0])
@@ -108,7 +110,14 @@ class SR(RegressorMixin, BaseEstimator):
     _predict_time_params = ("alpha",)
 
     def __init__(
-        self, alpha=1e-4, positive=True, normalize="l2", normalize_coef=True, solver="lasso", max_iter=2000, tol=1e-6
+        self,
+        alpha=1e-4,
+        positive=True,
+        normalize="l2",
+        normalize_coef=True,
+        solver="lasso",
+        max_iter=2000,
+        tol=1e-6,
     ):
         self.alpha = alpha
         self.positive = positive
@@ -145,12 +154,16 @@ class SR(RegressorMixin, BaseEstimator):
         X = _validate_predict(self, X)
         a = self.alpha if alpha is None else _check_number("alpha", alpha, low=0, low_open=True)
         B = _normalize_rows(X, self.normalize)
-        return _sparse_codes(self.dictionary_, B, a, self.positive, self.solver, int(self.max_iter), self.tol), B
+        return _sparse_codes(
+            self.dictionary_, B, a, self.positive, self.solver, int(self.max_iter), self.tol
+        ), B
 
     def predict(self, X, alpha=None):
         """Predict poses; ``alpha`` overrides the fitted penalty for this call."""
         C, B = self.sparse_code(X, alpha=alpha)
-        return _format_output(self, _decode(C, self.Y_train_, self.dictionary_, B, self.normalize_coef))
+        return _format_output(
+            self, _decode(C, self.Y_train_, self.dictionary_, B, self.normalize_coef)
+        )
 
 
 DEFAULT_GRID = {"alpha": [3e-4, 1e-3, 3e-3, 6e-3, 9e-3]}

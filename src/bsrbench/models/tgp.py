@@ -27,7 +27,6 @@ from scipy.optimize import minimize
 from sklearn.base import BaseEstimator, RegressorMixin
 
 from ..errors import InputError
-from .scaling import check_input_scaling
 from .reference import (
     RidgeRegressor,
     _check_choice,
@@ -39,6 +38,7 @@ from .reference import (
     _validate_fit,
     _validate_predict,
 )
+from .scaling import check_input_scaling
 
 _FROM_PARAMS = object()
 
@@ -210,6 +210,7 @@ class TGP(RegressorMixin, BaseEstimator):
             )
             out[i] = res.x * s if np.all(np.isfinite(res.x)) else Y0[i]
         return out
+
 
 DEFAULT_GRID = {
     "width_scale_x": [1.0, 2.0, 4.0, 8.0],

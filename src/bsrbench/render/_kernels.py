@@ -82,7 +82,11 @@ def rasterize_numpy(shape, seg, rad, ell_c, ell_q, ell_half):
             x0, y0, x1, y1 = seg[f, c]
             dx, dy = x1 - x0, y1 - y0
             len2 = dx * dx + dy * dy
-            t = np.zeros_like(px) if len2 == 0 else np.clip(((px - x0) * dx + (py - y0) * dy) / len2, 0, 1)
+            t = (
+                np.zeros_like(px)
+                if len2 == 0
+                else np.clip(((px - x0) * dx + (py - y0) * dy) / len2, 0, 1)
+            )
             out[f] |= (px - x0 - t * dx) ** 2 + (py - y0 - t * dy) ** 2 <= rad[c] ** 2
         for e in range(ell_c.shape[1]):
             ex, ey = px - ell_c[f, e, 0], py - ell_c[f, e, 1]

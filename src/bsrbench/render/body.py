@@ -107,7 +107,7 @@ def joint_side_and_base(name):
     low = raw.lower()
     for word, side in (("left", "L"), ("right", "R")):
         if low.startswith(word) and len(low) > len(word):
-            return side, low[len(word):]
+            return side, low[len(word) :]
     if len(raw) > 1 and raw[0] in "lLrR":
         rest = low[1:]
         if raw[1].isupper() or _SIDE_WORDS.match(rest):

@@ -60,7 +60,10 @@ class OrthoCamera:
         a = points @ self.right
         b = points @ self.up
         h, w = self.image_size
-        return np.stack([w / 2 + self.scale * (a - self.centre[0]), h / 2 - self.scale * (b - self.centre[1])], -1)
+        return np.stack(
+            [w / 2 + self.scale * (a - self.centre[0]), h / 2 - self.scale * (b - self.centre[1])],
+            -1,
+        )
 
 
 def _check_int_pair(value, name, minimum):
@@ -70,14 +73,23 @@ def _check_int_pair(value, name, minimum):
     except (TypeError, ValueError):
         ok = False
     if not ok or h < minimum or w < minimum:
-        raise InputError(f"{name}: expected two integers (height, width) >= {minimum}, got {value!r}")
+        raise InputError(
+            f"{name}: expected two integers (height, width) >= {minimum}, got {value!r}"
+        )
     return h, w
 
 
 def _check_skeleton(positions, parents, joint_names):
     positions = np.asarray(positions, dtype=float)
-    if positions.ndim != 3 or positions.shape[2] != 3 or positions.shape[0] < 1 or positions.shape[1] < 2:
-        raise InputError(f"positions: expected shape (frames >= 1, joints >= 2, 3), got {positions.shape}")
+    if (
+        positions.ndim != 3
+        or positions.shape[2] != 3
+        or positions.shape[0] < 1
+        or positions.shape[1] < 2
+    ):
+        raise InputError(
+            f"positions: expected shape (frames >= 1, joints >= 2, 3), got {positions.shape}"
+        )
     n_joints = positions.shape[1]
     if not np.all(np.isfinite(positions)):
         bad = np.argwhere(~np.isfinite(positions))[0]
@@ -85,11 +97,19 @@ def _check_skeleton(positions, parents, joint_names):
     parents_arr = np.asarray(parents)
     if parents_arr.shape != (n_joints,) or not np.issubdtype(parents_arr.dtype, np.integer):
         raise InputError(f"parents: expected {n_joints} integers (one per joint), got {parents!r}")
-    if np.any(parents_arr < -1) or np.any(parents_arr >= n_joints) or np.any(parents_arr == np.arange(n_joints)):
-        raise InputError(f"parents: expected indices in [-1, {n_joints}) other than the joint itself, got {parents!r}")
+    if (
+        np.any(parents_arr < -1)
+        or np.any(parents_arr >= n_joints)
+        or np.any(parents_arr == np.arange(n_joints))
+    ):
+        raise InputError(
+            f"parents: expected indices in [-1, {n_joints}) other than the joint itself, got {parents!r}"
+        )
     roots = np.flatnonzero(parents_arr < 0)
     if len(roots) != 1:
-        raise InputError(f"parents: expected exactly one root (-1), found {len(roots)} in {parents!r}")
+        raise InputError(
+            f"parents: expected exactly one root (-1), found {len(roots)} in {parents!r}"
+        )
     names = list(joint_names)
     if len(names) != n_joints or not all(isinstance(s, str) for s in names):
         raise InputError(f"joint_names: expected {n_joints} strings, got {joint_names!r}")
@@ -128,10 +148,22 @@ def _view_extent(body, caps, ell_c, ell_m):
     return lo[0], hi[0], lo[1], hi[1]
 
 
-def _prepare(positions, parents, joint_names, image_size, view_azimuth_deg, view_elevation_deg, body_scale, fill):
+def _prepare(
+    positions,
+    parents,
+    joint_names,
+    image_size,
+    view_azimuth_deg,
+    view_elevation_deg,
+    body_scale,
+    fill,
+):
     image_size = _check_int_pair(image_size, "image_size", 8)
     positions, parents, names, root = _check_skeleton(positions, parents, joint_names)
-    for value, name in ((view_azimuth_deg, "view_azimuth_deg"), (view_elevation_deg, "view_elevation_deg")):
+    for value, name in (
+        (view_azimuth_deg, "view_azimuth_deg"),
+        (view_elevation_deg, "view_elevation_deg"),
+    ):
         if not np.isfinite(float(value)):
             raise InputError(f"{name}: expected a finite angle in degrees, got {value!r}")
     if not (0 < float(fill) <= 1):
@@ -141,7 +173,9 @@ def _prepare(positions, parents, joint_names, image_size, view_azimuth_deg, view
     else:
         stature = float(body_scale)
         if not np.isfinite(stature) or stature <= 0:
-            raise InputError(f"body_scale: expected a positive body height in the motion's units, got {body_scale!r}")
+            raise InputError(
+                f"body_scale: expected a positive body height in the motion's units, got {body_scale!r}"
+            )
     body = build_body_model(parents, names, stature)
     rel = positions - positions[:, root : root + 1, :]
     right, up, _ = view_basis(view_azimuth_deg, view_elevation_deg)
@@ -178,7 +212,14 @@ def fit_camera(
 ):
     """(BodyModel, OrthoCamera) that ``render_silhouettes`` uses for these arguments (see the module docstring)."""
     body, camera, *_ = _prepare(
-        positions, parents, joint_names, image_size, view_azimuth_deg, view_elevation_deg, body_scale, fill
+        positions,
+        parents,
+        joint_names,
+        image_size,
+        view_azimuth_deg,
+        view_elevation_deg,
+        body_scale,
+        fill,
     )
     return body, camera
 
@@ -220,7 +261,14 @@ def render_silhouettes(
     Deterministic: the same input gives the same images.
     """
     body, camera, caps, ell_c, ell_m = _prepare(
-        positions, parents, joint_names, image_size, view_azimuth_deg, view_elevation_deg, body_scale, fill
+        positions,
+        parents,
+        joint_names,
+        image_size,
+        view_azimuth_deg,
+        view_elevation_deg,
+        body_scale,
+        fill,
     )
     h, w = camera.image_size
     s = camera.scale

@@ -20,7 +20,9 @@ from ..study import CONVERGENCE_SERIES
 from .tables import activity_label, best_mask, format_cell, latex_escape, paper_key, summarize
 
 #: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.
-CONVERGENCE_COLUMNS = ["n_chains"] + [f"{s}_{n}" for n in CONVERGENCE_SERIES for s in ("r_hat", "ess_bulk")]
+CONVERGENCE_COLUMNS = ["n_chains"] + [
+    f"{s}_{n}" for n in CONVERGENCE_SERIES for s in ("r_hat", "ess_bulk")
+]
 #: R-hat below this counts as converged (Vehtari et al. 2021 recommend 1.01; the issue asks for 1.05).
 RHAT_OK = 1.05
 #: Math labels of the per-sweep traces.
@@ -65,8 +67,12 @@ def convergence_summary_table(df):
         r["splits"] = len(g)
         r["chains"] = int(g["n_chains"].max())
         for n in CONVERGENCE_SERIES:
-            r[f"r_hat_{n}"] = float(g[f"r_hat_{n}"].max()) if g[f"r_hat_{n}"].notna().any() else math.nan
-            r[f"ess_bulk_{n}"] = float(g[f"ess_bulk_{n}"].min()) if g[f"ess_bulk_{n}"].notna().any() else math.nan
+            r[f"r_hat_{n}"] = (
+                float(g[f"r_hat_{n}"].max()) if g[f"r_hat_{n}"].notna().any() else math.nan
+            )
+            r[f"ess_bulk_{n}"] = (
+                float(g[f"ess_bulk_{n}"].min()) if g[f"ess_bulk_{n}"].notna().any() else math.nan
+            )
         ok = (g["r_hat_log_likelihood"] < RHAT_OK) & (g["r_hat_g_xy"] < RHAT_OK)
         r["converged"] = float(ok.mean())
         rows.append(r)
@@ -82,38 +88,56 @@ def convergence_latex(df, *, labels):
     df = with_convergence_columns(df)
     d = df[df["n_chains"].fillna(1) > 1]
     if d.empty:
-        return (r"\noindent No method was run with several chains, so no R-hat was computed "
-                r"(set \nolinkurl{methods.<M>.chains} $\geq 2$, e.g.\ \nolinkurl{config/ablation.yaml}).")
+        return (
+            r"\noindent No method was run with several chains, so no R-hat was computed "
+            r"(set \nolinkurl{methods.<M>.chains} $\geq 2$, e.g.\ \nolinkurl{config/ablation.yaml})."
+        )
     out = []
     for (protocol, n_train), dp in d.groupby(["protocol", "n_train"], sort=True):
         acts = ", ".join(sorted(set(dp["activity"])))
         out += [
-            r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
+            r"\begin{table}[H]",
+            r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
             rf"\caption{{Convergence, protocol ``{latex_escape(protocol)}'', $N={int(n_train)}$ (activities: "
             rf"{latex_escape(acts)}): "
             r"largest split $\hat R$ over splits and smallest bulk ESS over splits, across the chains of each split; "
             r"$\ell$: log-likelihood, err: test error of each retained sample; conv.: share of splits with "
             rf"$\hat R < {RHAT_OK}$ for both $\ell$ and $\gamma_{{xy}}$.}}",
-            r"\begin{tabular}{@{}lrrrrrrrrrr@{}}", r"\toprule",
+            r"\begin{tabular}{@{}lrrrrrrrrrr@{}}",
+            r"\toprule",
             r"Method & $N$ & splits & chains & $\hat R$ $\ell$ & $\hat R$ $\gamma_{xy}$ & $\hat R$ $\gamma_s$ & "
-            r"$\hat R$ err & ESS $\ell$ & ESS $\gamma_{xy}$ & conv. \\", r"\midrule",
+            r"$\hat R$ err & ESS $\ell$ & ESS $\gamma_{xy}$ & conv. \\",
+            r"\midrule",
         ]
         methods = list(dict.fromkeys(dp["method"]))
         for m in methods:
             for n, g in dp[dp["method"] == m].groupby("n_train", sort=True):
-                def mx(c):
+
+                def mx(c, g=g):
                     return float(g[c].max()) if g[c].notna().any() else math.nan
 
-                def mn(c):
+                def mn(c, g=g):
                     return float(g[c].min()) if g[c].notna().any() else math.nan
 
                 ok = ((g["r_hat_log_likelihood"] < RHAT_OK) & (g["r_hat_g_xy"] < RHAT_OK)).mean()
-                out.append(" & ".join([
-                    latex_escape(labels.get(m, m)), str(int(n)), str(len(g)), str(int(g["n_chains"].max())),
-                    _num(mx("r_hat_log_likelihood")), _num(mx("r_hat_g_xy")), _num(mx("r_hat_g_s")),
-                    _num(mx("r_hat_test_error")), _num(mn("ess_bulk_log_likelihood"), 0),
-                    _num(mn("ess_bulk_g_xy"), 0), f"{100 * ok:.0f}\\%",
-                ]) + r" \\")
+                out.append(
+                    " & ".join(
+                        [
+                            latex_escape(labels.get(m, m)),
+                            str(int(n)),
+                            str(len(g)),
+                            str(int(g["n_chains"].max())),
+                            _num(mx("r_hat_log_likelihood")),
+                            _num(mx("r_hat_g_xy")),
+                            _num(mx("r_hat_g_s")),
+                            _num(mx("r_hat_test_error")),
+                            _num(mn("ess_bulk_log_likelihood"), 0),
+                            _num(mn("ess_bulk_g_xy"), 0),
+                            f"{100 * ok:.0f}\\%",
+                        ]
+                    )
+                    + r" \\"
+                )
         out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
     return "\n".join(out)
 
@@ -130,19 +154,28 @@ def ablation_cells(df, *, variants, nn="NN1"):
     other method (baseline) and its mean. A DataFrame (empty if no variant ran)."""
     s = summarize(df)
     rows = []
-    for key, g in s.groupby(["protocol", "source", "activity", "paper_activity", "n_train"], sort=True):
+    for key, g in s.groupby(
+        ["protocol", "source", "activity", "paper_activity", "n_train"], sort=True
+    ):
         g = g.set_index("method")["mean"]
         vs = g[[v for v in variants if v in g.index]].dropna()
         if vs.empty:
             continue
         others = g[[m for m in g.index if m not in variants and m != nn]].dropna()
-        rows.append({
-            "protocol": key[0], "source": key[1], "activity": key[2], "paper_activity": key[3], "n_train": key[4],
-            "best_variant": vs.idxmin(), "best_variant_error": float(vs.min()),
-            "nn_error": float(g[nn]) if nn in g.index else math.nan,
-            "best_baseline": others.idxmin() if len(others) else "",
-            "best_baseline_error": float(others.min()) if len(others) else math.nan,
-        })
+        rows.append(
+            {
+                "protocol": key[0],
+                "source": key[1],
+                "activity": key[2],
+                "paper_activity": key[3],
+                "n_train": key[4],
+                "best_variant": vs.idxmin(),
+                "best_variant_error": float(vs.min()),
+                "nn_error": float(g[nn]) if nn in g.index else math.nan,
+                "best_baseline": others.idxmin() if len(others) else "",
+                "best_baseline_error": float(others.min()) if len(others) else math.nan,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -177,17 +210,33 @@ def goal_table(df, *, variants, nn="NN1"):
     s = summarize(df)
     s = s[s["method"].isin(variants)]
     if s.empty:
-        return pd.DataFrame(columns=["protocol", "method", "exact", "cells", "converged", "beats_nn", "both",
-                                     "mean_rank"])
+        return pd.DataFrame(
+            columns=[
+                "protocol",
+                "method",
+                "exact",
+                "cells",
+                "converged",
+                "beats_nn",
+                "both",
+                "mean_rank",
+            ]
+        )
     keys = ["protocol", "source", "activity", "n_train"]
-    nn_mean = summarize(df[df["method"] == nn]).set_index(keys)["mean"] if (df["method"] == nn).any() else None
+    nn_mean = (
+        summarize(df[df["method"] == nn]).set_index(keys)["mean"]
+        if (df["method"] == nn).any()
+        else None
+    )
     s = s.copy()
     s["rank"] = s.groupby(keys)["mean"].rank(method="average")
     conv = df[df["method"].isin(variants)].copy()
     conv["ok"] = (conv["r_hat_log_likelihood"] < RHAT_OK) & (conv["r_hat_g_xy"] < RHAT_OK)
     conv_cell = conv.groupby(keys + ["method"])["ok"].all()
-    exact = {m: _is_exact(g["params"].iloc[0]) if "params" in g else True
-             for m, g in df[df["method"].isin(variants)].groupby("method")}
+    exact = {
+        m: _is_exact(g["params"].iloc[0]) if "params" in g else True
+        for m, g in df[df["method"].isin(variants)].groupby("method")
+    }
     rows = []
     for (protocol, m), g in s.groupby(["protocol", "method"], sort=True):
         conv_ok = beats = both = 0
@@ -198,11 +247,23 @@ def goal_table(df, *, variants, nn="NN1"):
             conv_ok += c
             beats += b
             both += c and b
-        rows.append({"protocol": protocol, "method": m, "exact": exact.get(m, True), "cells": len(g),
-                     "converged": conv_ok, "beats_nn": beats, "both": both, "mean_rank": float(g["rank"].mean())})
+        rows.append(
+            {
+                "protocol": protocol,
+                "method": m,
+                "exact": exact.get(m, True),
+                "cells": len(g),
+                "converged": conv_ok,
+                "beats_nn": beats,
+                "both": both,
+                "mean_rank": float(g["rank"].mean()),
+            }
+        )
     out = pd.DataFrame(rows)
     out["_exact_first"] = ~out["exact"]
-    out = out.sort_values(["protocol", "_exact_first", "both", "mean_rank"], ascending=[True, True, False, True])
+    out = out.sort_values(
+        ["protocol", "_exact_first", "both", "mean_rank"], ascending=[True, True, False, True]
+    )
     return out.drop(columns="_exact_first").reset_index(drop=True)
 
 
@@ -214,7 +275,9 @@ def goal_sentence(df, *, variants, labels, nn="NN1"):
     out = []
     for protocol, tp in t.groupby("protocol", sort=True):
         if not ((df["method"] == nn) & (df["protocol"] == protocol)).any():
-            out.append(f"Protocol ``{latex_escape(protocol)}'': {L(nn)} was not run, so the goal is not judged.")
+            out.append(
+                f"Protocol ``{latex_escape(protocol)}'': {L(nn)} was not run, so the goal is not judged."
+            )
             continue
         ex = tp[tp["exact"]]
         if ex.empty:
@@ -240,22 +303,35 @@ def goal_latex(df, *, variants, labels, nn="NN1"):
     out = []
     for protocol, tp in t.groupby("protocol", sort=True):
         out += [
-            r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
+            r"\begin{table}[H]",
+            r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
             rf"\caption{{The goal, protocol ``{latex_escape(protocol)}'': per PM variant, the (activity, $N$) cells "
             rf"in which every split converged ($\hat R < {RHAT_OK}$ on $\ell$ and $\gamma_{{xy}}$), those in which "
             rf"its mean error is below {latex_escape(labels.get(nn, nn))}'s, and both; rank: the variant's mean rank "
             r"of error among the variants over the cells (1 best). Exact: its logit update leaves the posterior "
             r"invariant (Geweke test); the paper's printed ratios do not.}",
-            r"\begin{tabular}{@{}lcrrrrr@{}}", r"\toprule",
-            r"Variant & exact & cells & converged & beats " + latex_escape(labels.get(nn, nn))
-            + r" & both & rank \\", r"\midrule",
+            r"\begin{tabular}{@{}lcrrrrr@{}}",
+            r"\toprule",
+            r"Variant & exact & cells & converged & beats "
+            + latex_escape(labels.get(nn, nn))
+            + r" & both & rank \\",
+            r"\midrule",
         ]
         for _, r in tp.iterrows():
-            out.append(" & ".join([
-                latex_escape(labels.get(r["method"], r["method"])), "yes" if r["exact"] else "no",
-                str(int(r["cells"])), str(int(r["converged"])), str(int(r["beats_nn"])), str(int(r["both"])),
-                f"{r['mean_rank']:.1f}",
-            ]) + r" \\")
+            out.append(
+                " & ".join(
+                    [
+                        latex_escape(labels.get(r["method"], r["method"])),
+                        "yes" if r["exact"] else "no",
+                        str(int(r["cells"])),
+                        str(int(r["converged"])),
+                        str(int(r["beats_nn"])),
+                        str(int(r["both"])),
+                        f"{r['mean_rank']:.1f}",
+                    ]
+                )
+                + r" \\"
+            )
         out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
     return "\n".join(out)
 
@@ -265,7 +341,9 @@ def ablation_latex(df, paper, *, variants, labels, nn="NN1", digits=2):
     1-NN, the best other method and (random protocol... and any protocol, for reference) the paper's PM."""
     s = summarize(df)
     out = []
-    for (protocol, source, activity), sp in s.groupby(["protocol", "source", "activity"], sort=True):
+    for (protocol, source, activity), sp in s.groupby(
+        ["protocol", "source", "activity"], sort=True
+    ):
         vs = [v for v in variants if v in set(sp["method"])]
         if not vs:
             continue
@@ -277,38 +355,59 @@ def ablation_latex(df, paper, *, variants, labels, nn="NN1", digits=2):
             rows.append((latex_escape(labels.get(nn, nn)), nn))
         grid = {m: [_cell_stats(sp, activity, n, m) for n in sizes] for _, m in rows}
         best_base = []
-        for i, n in enumerate(sizes):
+        for n in sizes:
             cand = [(m, _cell_stats(sp, activity, n, m)) for m in others]
             cand = [(m, st) for m, st in cand if np.isfinite(st[0])]
-            best_base.append(min(cand, key=lambda t: t[1][0]) if cand else (None, (math.nan, math.nan)))
+            best_base.append(
+                min(cand, key=lambda t: t[1][0]) if cand else (None, (math.nan, math.nan))
+            )
         bold = []
         for i in range(len(sizes)):
             col = [grid[m][i][0] for _, m in rows] + [best_base[i][1][0]]
             bold.append(best_mask(col, digits))
         out += [
-            r"\begin{table}[H]", r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
+            r"\begin{table}[H]",
+            r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
             rf"\caption{{PM variants on {latex_escape(activity_label(activity, pa))} ({latex_escape(source)}), "
             rf"protocol ``{latex_escape(protocol)}'': mean error $\pm$ std (degrees) over splits; best of each "
             r"column in bold (variants, 1-NN and the best other method); italic: the paper's PM (random frames).}",
-            r"\begin{tabular}{@{}l" + "c" * len(sizes) + "@{}}", r"\toprule",
-            " & ".join(["Method"] + [f"$N={n}$" for n in sizes]) + r" \\", r"\midrule",
+            r"\begin{tabular}{@{}l" + "c" * len(sizes) + "@{}}",
+            r"\toprule",
+            " & ".join(["Method"] + [f"$N={n}$" for n in sizes]) + r" \\",
+            r"\midrule",
         ]
         for r, (lab, m) in enumerate(rows):
             if m == nn:
                 out.append(r"\midrule")
-            cells = [format_cell(*grid[m][i], bold=bold[i][r], digits=digits) for i in range(len(sizes))]
+            cells = [
+                format_cell(*grid[m][i], bold=bold[i][r], digits=digits) for i in range(len(sizes))
+            ]
             out.append(" & ".join([lab] + cells) + r" \\")
         cells = []
         for i in range(len(sizes)):
             m, st = best_base[i]
-            cells.append("--" if m is None else format_cell(*st, bold=bold[i][len(rows)], digits=digits)
-                         + rf" {{\scriptsize ({latex_escape(labels.get(m, m))})}}")
+            cells.append(
+                "--"
+                if m is None
+                else format_cell(*st, bold=bold[i][len(rows)], digits=digits)
+                + rf" {{\scriptsize ({latex_escape(labels.get(m, m))})}}"
+            )
         out.append(" & ".join(["best other method"] + cells) + r" \\")
         if paper is not None and paper_key(pa):
-            pc = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == "PM")].set_index("n_train")
+            pc = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == "PM")].set_index(
+                "n_train"
+            )
             if any(n in pc.index for n in sizes):
-                cells = [r"\emph{" + format_cell(float(pc.at[n, "mean_deg"]), float(pc.at[n, "std_deg"]),
-                                                  digits=digits) + "}" if n in pc.index else "" for n in sizes]
+                cells = [
+                    r"\emph{"
+                    + format_cell(
+                        float(pc.at[n, "mean_deg"]), float(pc.at[n, "std_deg"]), digits=digits
+                    )
+                    + "}"
+                    if n in pc.index
+                    else ""
+                    for n in sizes
+                ]
                 out.append(" & ".join([r"\emph{paper's PM}"] + cells) + r" \\")
         out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
     return "\n".join(out)
@@ -329,7 +428,8 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
         out.append(
             f"Protocol ``{latex_escape(protocol)}'': the best PM variant of each (activity, $N$) cell beats "
             f"{L(nn)} in {len(wins)} of {len(have)} cells; the best variant is "
-            + ", ".join(f"{L(m)} in {k}" for m, k in counts.items()) + " of them."
+            + ", ".join(f"{L(m)} in {k}" for m, k in counts.items())
+            + " of them."
         )
         bb = c.dropna(subset=["best_baseline_error"])
         if len(bb):
@@ -341,7 +441,9 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
     conv = convergence_summary_table(df)
     conv = conv[conv["method"].isin(variants)] if not conv.empty else conv
     if conv.empty:
-        out.append("No PM variant was run with several chains, so convergence was not measured here.")
+        out.append(
+            "No PM variant was run with several chains, so convergence was not measured here."
+        )
     else:
         per = conv.groupby("method", sort=False)["converged"].mean()
         good = [m for m, v in per.items() if v == 1.0]
@@ -350,7 +452,8 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
             f"{int(conv['chains'].max())} chains): "
             + (", ".join(L(m) for m in good) if good else "no variant")
             + f" of {len(per)}; share of converged splits per variant: "
-            + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in per.items()) + "."
+            + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in per.items())
+            + "."
         )
         conv_good = conv[conv["method"].isin(good)]
         if len(conv_good) and conv_good["r_hat_g_s"].notna().any():
@@ -359,8 +462,11 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
                 f"{float(conv_good['r_hat_g_s'].max()):.2f} and the smallest bulk ESS of the log-likelihood "
                 f"{float(conv_good['ess_bulk_log_likelihood'].min()):.0f}; for the others the largest "
                 f"$\\hat R$ of the log-likelihood is "
-                + (f"{float(conv[~conv['method'].isin(good)]['r_hat_log_likelihood'].max()):.2f}."
-                   if (~conv["method"].isin(good)).any() else "not applicable (all converged).")
+                + (
+                    f"{float(conv[~conv['method'].isin(good)]['r_hat_log_likelihood'].max()):.2f}."
+                    if (~conv["method"].isin(good)).any()
+                    else "not applicable (all converged)."
+                )
             )
         # the goal as the goal table counts it: per protocol, cells with every split converged and a mean error
         # below 1-NN's, in at least three quarters of the variant's cells
@@ -368,8 +474,12 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
         meet = gt[gt["exact"] & (gt["both"] >= np.ceil(0.75 * gt["cells"]))] if len(gt) else gt
         both = list(dict.fromkeys(meet["method"])) if len(meet) else []
         out.append(
-            "Exact variants with every split converged and a mean error below " + L(nn) + "'s in at least three "
-            "quarters of their cells (the goal): " + (", ".join(L(m) for m in both) if both else "none") + "."
+            "Exact variants with every split converged and a mean error below "
+            + L(nn)
+            + "'s in at least three "
+            "quarters of their cells (the goal): "
+            + (", ".join(L(m) for m in both) if both else "none")
+            + "."
         )
     if paper is not None and base in variants:
         # like with like: the paper's numbers are for random frames, so only this study's random protocol,
@@ -394,8 +504,10 @@ def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
                 ]
                 per_source.append(f"on the {latex_escape(src)} data, " + "; ".join(parts))
             if per_source:
-                out.append(f"{L(base)} here against the paper's PM (random protocol, as in the paper; median "
-                           "over activities): " + "; ".join(per_source) + " degrees.")
+                out.append(
+                    f"{L(base)} here against the paper's PM (random protocol, as in the paper; median "
+                    "over activities): " + "; ".join(per_source) + " degrees."
+                )
     return out
 
 
@@ -404,27 +516,49 @@ def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1")
 
     ``figures``: list of (path relative to the study's report folder reports/{study}, caption).
     """
-    lines = ["% generated from the study's aggregate table", r"\section{Why PM trails the paper here}", ""]
+    lines = [
+        "% generated from the study's aggregate table",
+        r"\section{Why PM trails the paper here}",
+        "",
+    ]
     lines.append(
         r"The paper's PM is a Gibbs sampler; its numbers carry weight only if the chains have converged. Every PM "
         r"variant below is a method of its own (\texttt{config/ablation.yaml}); with several chains per split the "
         r"prediction pools the chains and the split R-hat and bulk ESS (ArviZ) are computed across them."
     )
-    lines += ["", r"\begin{itemize}"] + [r"\item " + t for t in why_pm_sentences(
-        df, paper, variants=variants, labels=labels, base=base, nn=nn)] + [r"\end{itemize}", ""]
+    lines += (
+        ["", r"\begin{itemize}"]
+        + [
+            r"\item " + t
+            for t in why_pm_sentences(df, paper, variants=variants, labels=labels, base=base, nn=nn)
+        ]
+        + [r"\end{itemize}", ""]
+    )
     lines += [r"\subsection*{Convergence}", convergence_latex(df, labels=labels), ""]
     goal = goal_latex(df, variants=variants, labels=labels, nn=nn)
     if goal:
-        lines += [r"\subsection*{The goal: an exact PM that converges and beats "
-                  + latex_escape(labels.get(nn, nn)) + "}",
-                  goal_sentence(df, variants=variants, labels=labels, nn=nn), "", goal, ""]
+        lines += [
+            r"\subsection*{The goal: an exact PM that converges and beats "
+            + latex_escape(labels.get(nn, nn))
+            + "}",
+            goal_sentence(df, variants=variants, labels=labels, nn=nn),
+            "",
+            goal,
+            "",
+        ]
     if len(variants) > 1 or nn in set(df["method"]):
-        lines += [r"\subsection*{Ablation}", ablation_latex(df, paper, variants=variants, labels=labels, nn=nn), ""]
+        lines += [
+            r"\subsection*{Ablation}",
+            ablation_latex(df, paper, variants=variants, labels=labels, nn=nn),
+            "",
+        ]
     for f, caption in figures:
         lines += [
-            r"\begin{figure}[H]", r"\centering",
+            r"\begin{figure}[H]",
+            r"\centering",
             rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{{f}}}",
-            rf"\caption{{{caption}}}", r"\end{figure}",
+            rf"\caption{{{caption}}}",
+            r"\end{figure}",
         ]
     return "\n".join(lines) + "\n"
 
@@ -441,11 +575,11 @@ def chain_traces(arrays):
     out = {}
     for k, v in arrays.items():
         if k.startswith("chain_trace_"):
-            out[k[len("chain_trace_"):]] = np.atleast_2d(np.asarray(v, dtype=float))
+            out[k[len("chain_trace_") :]] = np.atleast_2d(np.asarray(v, dtype=float))
     if not out:
         for k, v in arrays.items():
             if k.startswith("trace_") and np.asarray(v).ndim == 1:
-                out[k[len("trace_"):]] = np.asarray(v, dtype=float)[None, :]
+                out[k[len("trace_") :]] = np.asarray(v, dtype=float)[None, :]
     if "chain_draw_error" in arrays:
         out["draw_error"] = np.atleast_2d(np.asarray(arrays["chain_draw_error"], dtype=float))
     return out
@@ -543,8 +677,14 @@ def gxy_caption(df, methods, *, protocol, n_train, labels):
     the aggregate table ``df`` (protocol ``protocol``, ``n_train`` training pairs)."""
     parts = []
     for m in methods:
-        rows = df[(df["method"] == m) & (df["protocol"] == protocol) & (df["n_train"] == int(n_train))]
-        params = json.loads(rows["params"].iloc[0]) if len(rows) and isinstance(rows["params"].iloc[0], str) else {}
+        rows = df[
+            (df["method"] == m) & (df["protocol"] == protocol) & (df["n_train"] == int(n_train))
+        ]
+        params = (
+            json.loads(rows["params"].iloc[0])
+            if len(rows) and isinstance(rows["params"].iloc[0], str)
+            else {}
+        )
         k, rel, prior = gxy_panel(params, n_train)
         text = f"{latex_escape(labels.get(m, m))}: "
         if k == "?":
@@ -560,7 +700,8 @@ def gxy_caption(df, methods, *, protocol, n_train, labels):
     what = f"the {len(parts)} methods" if len(parts) != 1 else "the method"
     return (
         "The noise precision $\\gamma_{xy}$ per chain (first activity, smallest $N$, first seed; log axis; "
-        f"shaded: burn-in) of {what} of \\texttt{{report.gxy\\_methods}}: " + "; ".join(parts)
+        f"shaded: burn-in) of {what} of \\texttt{{report.gxy\\_methods}}: "
+        + "; ".join(parts)
         + ". The panel titles repeat $K$ and $N$."
     )
 
@@ -575,7 +716,9 @@ def plot_gxy(items, *, n_burn_in=None):
     n = max(1, len(items))
     from .plots import TEXT_WIDTH
 
-    fig, axes = plt.subplots(1, n, figsize=(min(TEXT_WIDTH, 2.5 * n + 0.8), 2.6), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(
+        1, n, figsize=(min(TEXT_WIDTH, 2.5 * n + 0.8), 2.6), squeeze=False, sharey=True
+    )
     for ax, (title, arrays) in zip(axes[0], items):
         tr = chain_traces(arrays).get("g_xy")
         burn = n_burn_in if n_burn_in is not None else int(arrays.get("n_burn_in", 0))
@@ -591,6 +734,9 @@ def plot_gxy(items, *, n_burn_in=None):
         ax.set_xlabel("Gibbs sweep")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel(r"$\gamma_{xy}$", fontsize=MATH_TITLE_PT)
-    fig.suptitle(r"Noise precision $\gamma_{xy}$ per chain (log axis; shaded: burn-in)", fontsize=MATH_TITLE_PT)
+    fig.suptitle(
+        r"Noise precision $\gamma_{xy}$ per chain (log axis; shaded: burn-in)",
+        fontsize=MATH_TITLE_PT,
+    )
     fig.tight_layout()
     return fig

@@ -19,19 +19,30 @@ import textwrap
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from ..io import atomic_path  # noqa: E402
-from .tables import activity_label, paper_key, summarize  # noqa: E402
+from ..io import atomic_path
+from .tables import activity_label, paper_key, summarize
 
 #: Figures are drawn at the size they are printed (the report includes them unscaled; at most TEXT_WIDTH
 #: inches wide), so these are the printed font sizes: none below 7 pt.
 MIN_FONT_PT = 7
 TEXT_WIDTH = 6.9  # inches: A4 with the report's 1.6 cm margins leaves 7.0 in
-plt.rcParams.update({"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7,
-                     "ytick.labelsize": 7, "legend.fontsize": 7, "legend.title_fontsize": 7,
-                     "figure.titlesize": 9, "svg.hashsalt": "bsrbench", "pdf.fonttype": 42})
+plt.rcParams.update(
+    {
+        "font.size": 8,
+        "axes.titlesize": 8,
+        "axes.labelsize": 8,
+        "xtick.labelsize": 7,
+        "ytick.labelsize": 7,
+        "legend.fontsize": 7,
+        "legend.title_fontsize": 7,
+        "figure.titlesize": 9,
+        "svg.hashsalt": "bsrbench",
+        "pdf.fonttype": 42,
+    }
+)
 _MARKERS = "osD^v<>ph*"
 
 
@@ -39,9 +50,19 @@ def save(fig, paths):
     """Save ``fig`` to every path (format from the suffix; no timestamps in PDF metadata), atomically."""
     for path in paths:
         with atomic_path(path) as tmp:
-            kw = {"metadata": {"CreationDate": None}} if str(path).endswith(".pdf") else {"metadata": {"Software": None}}
-            fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=150, bbox_inches="tight", pad_inches=0.02,
-                        **kw)
+            kw = (
+                {"metadata": {"CreationDate": None}}
+                if str(path).endswith(".pdf")
+                else {"metadata": {"Software": None}}
+            )
+            fig.savefig(
+                tmp,
+                format=str(path).rsplit(".", 1)[-1],
+                dpi=150,
+                bbox_inches="tight",
+                pad_inches=0.02,
+                **kw,
+            )
     plt.close(fig)
 
 
@@ -49,7 +70,9 @@ def _grid(n):
     cols = min(3, n)
     rows = math.ceil(n / cols)
     # at least two panels wide, so that a one-panel figure is not blown up to the text width
-    fig, axes = plt.subplots(rows, cols, figsize=(min(TEXT_WIDTH, 3.2 * max(cols, 2)), 2.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(min(TEXT_WIDTH, 3.2 * max(cols, 2)), 2.6 * rows), squeeze=False
+    )
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat)
@@ -66,8 +89,14 @@ def _size_axis(ax, sizes):
 
 #: Leading digits of the labelled ticks of a log axis, sparsest first: :func:`_log_ticks` takes the first set
 #: that labels the shown range evenly enough.
-_LOG_TICK_SETS = ((1,), (1, 2, 5), (1, 2, 3, 5), (1, 1.5, 2, 3, 5, 7), (1, 1.5, 2, 3, 4, 5, 6, 8),
-                  (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 7, 8, 9))
+_LOG_TICK_SETS = (
+    (1,),
+    (1, 2, 5),
+    (1, 2, 3, 5),
+    (1, 1.5, 2, 3, 5, 7),
+    (1, 1.5, 2, 3, 4, 5, 6, 8),
+    (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 7, 8, 9),
+)
 
 
 def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
@@ -89,21 +118,26 @@ def _log_ticks(lo, hi, min_labels=4, max_gap=0.4):
     span = max(lhi - llo, 1e-12)
     best = None
     for leads in _LOG_TICK_SETS:
-        ticks = [lead * 10.0**k for k in range(math.floor(llo) - 1, math.ceil(lhi) + 1) for lead in leads]
+        ticks = [
+            lead * 10.0**k for k in range(math.floor(llo) - 1, math.ceil(lhi) + 1) for lead in leads
+        ]
         ticks = [float(f"{t:.6g}") for t in ticks if lo <= t <= hi]
         if len(ticks) < min_labels:
             continue
         logs = [math.log10(t) for t in ticks]
         inner = max((b - a for a, b in zip(logs, logs[1:])), default=0.0)
-        excess = max(inner / (max_gap * span), max(logs[0] - llo, lhi - logs[-1]) / (max_gap * span / 2))
+        excess = max(
+            inner / (max_gap * span), max(logs[0] - llo, lhi - logs[-1]) / (max_gap * span / 2)
+        )
         if excess <= 1.0:
             return ticks
         if best is None or excess < best[0]:
             best = (excess, ticks)
     if best is not None:
         return best[1]
-    linear = matplotlib.ticker.MaxNLocator(nbins=min_labels + 1, steps=[1, 2, 2.5, 5, 10],
-                                          min_n_ticks=min_labels).tick_values(lo, hi)
+    linear = matplotlib.ticker.MaxNLocator(
+        nbins=min_labels + 1, steps=[1, 2, 2.5, 5, 10], min_n_ticks=min_labels
+    ).tick_values(lo, hi)
     return [float(f"{t:.6g}") for t in linear if lo <= t <= hi]
 
 
@@ -134,7 +168,9 @@ def _panels(n, *, legend_width=1.3, panel_height=2.3, max_cols=3):
     cols = min(max_cols, max(1, n))
     rows = math.ceil(max(1, n) / cols)
     width = min(TEXT_WIDTH, legend_width + (4.0 if cols == 1 else 2.6 * cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(width, panel_height * rows), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(width, panel_height * rows), squeeze=False, layout="constrained"
+    )
     for ax in axes.flat[n:]:
         ax.remove()
     return fig, list(axes.flat)[:n]
@@ -196,17 +232,39 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
             c, mk = colors[i % len(colors)], _MARKERS[i % len(_MARKERS)]
             dodge = 1.0 + 0.018 * (i - (len(methods) - 1) / 2)
             for protocol, ls in PROTOCOL_LINESTYLES.items():
-                d = s[(s["activity"] == act) & (s["method"] == m) & (s["protocol"] == protocol)].sort_values("n_train")
+                d = s[
+                    (s["activity"] == act) & (s["method"] == m) & (s["protocol"] == protocol)
+                ].sort_values("n_train")
                 if d.empty:
                     continue
-                ax.errorbar(d["n_train"] * dodge, d["mean"], yerr=d["std"].fillna(0), color=c, ls=ls, marker=mk,
-                            ms=3.5, capsize=1.5, lw=1)
-            pp = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == labels.get(m, m))
-                       & paper["n_train"].isin(sorted(ran))].sort_values("n_train")
+                ax.errorbar(
+                    d["n_train"] * dodge,
+                    d["mean"],
+                    yerr=d["std"].fillna(0),
+                    color=c,
+                    ls=ls,
+                    marker=mk,
+                    ms=3.5,
+                    capsize=1.5,
+                    lw=1,
+                )
+            pp = paper[
+                (paper["key"] == paper_key(pa))
+                & (paper["method"] == labels.get(m, m))
+                & paper["n_train"].isin(sorted(ran))
+            ].sort_values("n_train")
             if not pp.empty:
                 shown_paper = True
-                ax.plot(pp["n_train"] * dodge, pp["mean_deg"], ls=":", lw=0.9, color=c, marker=mk, mfc="white",
-                        ms=4.5)
+                ax.plot(
+                    pp["n_train"] * dodge,
+                    pp["mean_deg"],
+                    ls=":",
+                    lw=0.9,
+                    color=c,
+                    marker=mk,
+                    mfc="white",
+                    ms=4.5,
+                )
         ax.set_title(activity_label(act, pa))
         label_log_axis(ax)  # labelled on both sides of a power of ten, whatever the range
         _size_axis(ax, sizes)
@@ -214,16 +272,46 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
         ax.set_ylabel("mean angle error (degrees)")
         ax.grid(alpha=0.3, which="both")
     handles = [
-        Line2D([], [], color=colors[i % len(colors)], marker=_MARKERS[i % len(_MARKERS)], ms=3.5, lw=1,
-               label=labels.get(m, m))
+        Line2D(
+            [],
+            [],
+            color=colors[i % len(colors)],
+            marker=_MARKERS[i % len(_MARKERS)],
+            ms=3.5,
+            lw=1,
+            label=labels.get(m, m),
+        )
         for i, m in enumerate(methods)
     ]
     # only the protocols in the data (a contiguous-only study has no "random" line to explain)
-    style = [Line2D([], [], color="0.3", marker="o", ms=3.5, lw=1, ls=ls,
-                    label=f"this study ({protocol.replace('_', '-')})")
-             for protocol, ls in PROTOCOL_LINESTYLES.items() if protocol in protocols]
+    style = [
+        Line2D(
+            [],
+            [],
+            color="0.3",
+            marker="o",
+            ms=3.5,
+            lw=1,
+            ls=ls,
+            label=f"this study ({protocol.replace('_', '-')})",
+        )
+        for protocol, ls in PROTOCOL_LINESTYLES.items()
+        if protocol in protocols
+    ]
     if shown_paper:
-        style.append(Line2D([], [], color="0.3", marker="o", mfc="white", ms=4.5, lw=0.9, ls=":", label="the paper"))
+        style.append(
+            Line2D(
+                [],
+                [],
+                color="0.3",
+                marker="o",
+                mfc="white",
+                ms=4.5,
+                lw=0.9,
+                ls=":",
+                label="the paper",
+            )
+        )
     fig.legend(handles=handles + style, loc="outside right upper", frameon=False)
     return fig
 
@@ -239,7 +327,9 @@ def plot_calibration(df, *, methods, labels, source=None):
         df = df[df["source"] == source]
     protocols = sorted(df["protocol"].unique()) if "protocol" in df.columns else []
     protocol = "random" if "random" in protocols or not protocols else protocols[0]
-    cols = sorted((c for c in df.columns if c.startswith("coverage_")), key=lambda c: int(c.split("_")[1]))
+    cols = sorted(
+        (c for c in df.columns if c.startswith("coverage_")), key=lambda c: int(c.split("_")[1])
+    )
     levels = np.array([int(c.split("_")[1]) / 100 for c in cols])
     sizes = sorted(df["n_train"].unique())
     fig, axes = _panels(max(1, len(sizes)), panel_height=2.2)
@@ -254,7 +344,15 @@ def plot_calibration(df, *, methods, labels, source=None):
             mean = d[cols].mean().to_numpy(float)
             lo, hi = d[cols].min().to_numpy(float), d[cols].max().to_numpy(float)
             c = colors[i % len(colors)]
-            ax.plot(levels, mean, marker=_MARKERS[i % len(_MARKERS)], ms=3, lw=1, color=c, label=labels.get(m, m))
+            ax.plot(
+                levels,
+                mean,
+                marker=_MARKERS[i % len(_MARKERS)],
+                ms=3,
+                lw=1,
+                color=c,
+                label=labels.get(m, m),
+            )
             ax.fill_between(levels, lo, hi, alpha=0.15, color=c)
             any_line = True
         ax.set_title(f"N = {n}" + ("" if protocol == "random" else f" ({protocol})"))
@@ -272,7 +370,13 @@ def plot_calibration(df, *, methods, labels, source=None):
                     names.append(nm)
         fig.legend(handles, names, loc="outside right upper", frameon=False)
     else:
-        axes[0].text(0.7, 0.5, "no method with predictive\nintervals was run", ha="center", fontsize=MIN_FONT_PT)
+        axes[0].text(
+            0.7,
+            0.5,
+            "no method with predictive\nintervals was run",
+            ha="center",
+            fontsize=MIN_FONT_PT,
+        )
     return fig
 
 
@@ -284,19 +388,38 @@ def plot_subjective(panels, *, labels):
     Row titles and method labels are those of :func:`plot_subjective_sticks`.
     """
     n = max(1, len(panels))
-    fig, axes = plt.subplots(n, 2, figsize=(TEXT_WIDTH, 2.4 * n), squeeze=False, layout="constrained",
-                             gridspec_kw={"width_ratios": [1, 2.6]})
+    fig, axes = plt.subplots(
+        n,
+        2,
+        figsize=(TEXT_WIDTH, 2.4 * n),
+        squeeze=False,
+        layout="constrained",
+        gridspec_kw={"width_ratios": [1, 2.6]},
+    )
     for (axx, axy), pnl in zip(axes, panels):
         axx.bar(np.arange(pnl["x"].size), pnl["x"], width=1.0, color="0.3")
-        axx.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram", loc="left")
+        axx.set_title(
+            f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram", loc="left"
+        )
         axx.set_xlabel("shape-context histogram bin")
         axx.set_ylabel("weight")
         idx = np.arange(pnl["y_true"].size)
         axy.plot(idx, pnl["y_true"], color="k", lw=1.5, marker="o", ms=2.5, label="true pose")
         for i, (m, y) in enumerate(pnl["preds"].items()):
-            axy.plot(idx, y, lw=0.9, color=f"C{i}", marker=_MARKERS[i % 10], ms=3, mfc="none",
-                     label=f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)")
-        axy.set_title("the true pose and the predicted poses\n(57 joint angles; error on this frame)", loc="left")
+            axy.plot(
+                idx,
+                y,
+                lw=0.9,
+                color=f"C{i}",
+                marker=_MARKERS[i % 10],
+                ms=3,
+                mfc="none",
+                label=f"{labels.get(m, m)} ({pnl['errors'][m]:.1f} deg)",
+            )
+        axy.set_title(
+            "the true pose and the predicted poses\n(57 joint angles; error on this frame)",
+            loc="left",
+        )
         axy.set_xlabel("joint angle index")
         axy.set_ylabel("degrees")
         axy.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
@@ -330,9 +453,13 @@ def subjective_panels(items, methods, error_fn):
         }
         for m in shown:
             if not np.array_equal(np.asarray(preds[m]["test"]), test):
-                raise ValueError(f"{activity}: method {m} was tested on other frames than {shown[0]}")
+                raise ValueError(
+                    f"{activity}: method {m} was tested on other frames than {shown[0]}"
+                )
             panel["preds"][m] = np.asarray(preds[m]["y_pred"])[k]
-            panel["errors"][m] = float(error_fn(preds[m]["y_true"][k : k + 1], preds[m]["y_pred"][k : k + 1])[0])
+            panel["errors"][m] = float(
+                error_fn(preds[m]["y_true"][k : k + 1], preds[m]["y_pred"][k : k + 1])[0]
+            )
         panels.append(panel)
     return panels
 
@@ -352,7 +479,9 @@ def pose_positions(bvh, trial_frame, pose_joints, angles):
     cols, _ = pose_columns(bvh.skeleton, list(pose_joints))
     angles = np.asarray(angles, dtype=float)
     if angles.shape != cols.shape:
-        raise ValueError(f"expected {cols.size} pose angles for joints {list(pose_joints)}; got {angles.shape}")
+        raise ValueError(
+            f"expected {cols.size} pose angles for joints {list(pose_joints)}; got {angles.shape}"
+        )
     keep = cols >= 0
     row[cols[keep]] = angles[keep]
     pos = skeleton_positions(bvh.skeleton, row[None])[0]
@@ -377,7 +506,13 @@ def oblique_projection(pos, *, elev=12.0, azim=35.0):
 def _stick(ax, xy, parents, color, lw=1.4):
     for j, p in enumerate(parents):
         if p >= 0:
-            ax.plot([xy[p, 0], xy[j, 0]], [xy[p, 1], xy[j, 1]], color=color, lw=lw, solid_capstyle="round")
+            ax.plot(
+                [xy[p, 0], xy[j, 0]],
+                [xy[p, 1], xy[j, 1]],
+                color=color,
+                lw=lw,
+                solid_capstyle="round",
+            )
 
 
 def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
@@ -392,7 +527,9 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
     n = max(1, len(panels))
     ncol = 2 + max((len(p["preds"]) for p in panels), default=0)
     row_h = 2.5
-    fig, axes = plt.subplots(n, ncol, figsize=(TEXT_WIDTH, row_h * n), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        n, ncol, figsize=(TEXT_WIDTH, row_h * n), squeeze=False, layout="constrained"
+    )
     for axrow, pnl in zip(axes, panels):
         ax = axrow[0]
         if pnl.get("silhouette") is None:
@@ -408,12 +545,17 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
             rows, cols = np.nonzero(sil)
             if rows.size:  # crop to the silhouette, with a margin
                 m = max(2, int(0.05 * sil.shape[0]))
-                sil = sil[max(rows.min() - m, 0) : rows.max() + m + 1, max(cols.min() - m, 0) : cols.max() + m + 1]
+                sil = sil[
+                    max(rows.min() - m, 0) : rows.max() + m + 1,
+                    max(cols.min() - m, 0) : cols.max() + m + 1,
+                ]
             ax.imshow(sil, cmap="gray_r", interpolation="nearest")
             ax.set_axis_off()
             ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input silhouette")
-        view = {k: oblique_projection(v, elev=elev, azim=azim) for k, v in
-                [("true", pnl["true"])] + list(pnl["preds"].items())}
+        view = {
+            k: oblique_projection(v, elev=elev, azim=azim)
+            for k, v in [("true", pnl["true"])] + list(pnl["preds"].items())
+        }
         allxy = np.concatenate(list(view.values()))
         lo, hi = allxy.min(axis=0), allxy.max(axis=0)
         pad = 0.05 * float((hi - lo).max())

@@ -90,8 +90,9 @@ def publish(src, dest, study=None):
     if not parent.is_dir():
         what = "is not a folder" if parent.exists() else "does not exist"
         raise DataFileError(
-            dest, f"cannot write the published table: its folder {str(parent)!r} {what}; expected the path of a "
-            f"table in an existing folder, e.g. reports/published/paper.csv"
+            dest,
+            f"cannot write the published table: its folder {str(parent)!r} {what}; expected the path of a "
+            f"table in an existing folder, e.g. reports/published/paper.csv",
         )
     check_study(src, dest, study)
     df = read_results(src)
@@ -100,7 +101,9 @@ def publish(src, dest, study=None):
         with atomic_path(dest) as tmp:
             df.to_csv(tmp, index=False)
     except OSError as exc:
-        raise DataFileError(dest, f"cannot write the published table ({exc.strerror or exc})") from exc
+        raise DataFileError(
+            dest, f"cannot write the published table ({exc.strerror or exc})"
+        ) from exc
     return df
 
 
@@ -113,8 +116,10 @@ def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, label
     shown = [m for m in methods if m in set(s["method"])] + sorted(set(s["method"]) - set(methods))
     out = {}
     for source, ss in s.groupby("source", sort=False):
-        lines = ["| activity | N | " + " | ".join(labels.get(m, m) for m in shown) + " |",
-                 "|" + "---|" * (2 + len(shown))]
+        lines = [
+            "| activity | N | " + " | ".join(labels.get(m, m) for m in shown) + " |",
+            "|" + "---|" * (2 + len(shown)),
+        ]
         for (activity, n), g in ss.groupby(["activity", "n_train"], sort=True):
             g = g.set_index("method")
             means = [float(g.at[m, "mean"]) if m in g.index else math.nan for m in shown]
@@ -129,7 +134,11 @@ def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, label
                 if np.isfinite(std):
                     txt += f"±{std:.{digits}f}"
                 key = g["key"].iloc[0]
-                p = paper[(paper["key"] == key) & (paper["n_train"] == n) & (paper["method"] == labels.get(m, m))]
+                p = paper[
+                    (paper["key"] == key)
+                    & (paper["n_train"] == n)
+                    & (paper["method"] == labels.get(m, m))
+                ]
                 if key and len(p):
                     txt += f" ({float(p['mean_deg'].iloc[0]):.{digits}f})"
                 cells.append(txt)
@@ -149,8 +158,9 @@ def update_readme(path, tables):
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise DataFileError(
-            path, f"cannot read the file to update ({why}); expected an existing UTF-8 text file (the README) with "
-            f"the markers '<!-- results-table:<source> -->' ... '<!-- /results-table:<source> -->'"
+            path,
+            f"cannot read the file to update ({why}); expected an existing UTF-8 text file (the README) with "
+            f"the markers '<!-- results-table:<source> -->' ... '<!-- /results-table:<source> -->'",
         ) from exc
     for source, table in tables.items():
         pat = re.compile(
@@ -159,9 +169,10 @@ def update_readme(path, tables):
         )
         if not pat.search(text):
             raise DataFileError(
-                path, f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'"
+                path,
+                f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'",
             )
-        text = pat.sub(lambda m: m.group(1) + table + m.group(2), text)
+        text = pat.sub(lambda m, table=table: m.group(1) + table + m.group(2), text)
     try:
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
@@ -174,18 +185,33 @@ README_STUDY = "paper"
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m bsrbench.reporting.published", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m bsrbench.reporting.published", description=__doc__.split("\n")[0]
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("publish", help="copy an aggregate table to reports/published/<study>.csv (checked)")
+    p = sub.add_parser(
+        "publish", help="copy an aggregate table to reports/published/<study>.csv (checked)"
+    )
     p.add_argument("src", help="results/<study>/aggregate/results.csv")
     p.add_argument("dest", help="reports/published/<study>.csv (named after the study of src)")
-    p.add_argument("--study", help="the study of a src outside results/ (default: <study> of "
-                   "results/<study>/aggregate/results.csv)")
+    p.add_argument(
+        "--study",
+        help="the study of a src outside results/ (default: <study> of "
+        "results/<study>/aggregate/results.csv)",
+    )
     r = sub.add_parser("readme", help="the README's results tables from a published table")
     r.add_argument("table")
-    r.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables (resources/paper-tables.csv)")
+    r.add_argument(
+        "--paper",
+        default=str(_DEFAULT_PAPER),
+        help="the paper's tables (resources/paper-tables.csv)",
+    )
     r.add_argument("--protocol", default="random")
-    r.add_argument("--update", metavar="README", help="replace the marked tables in this file instead of printing")
+    r.add_argument(
+        "--update",
+        metavar="README",
+        help="replace the marked tables in this file instead of printing",
+    )
     args = ap.parse_args(argv)
     try:
         if args.cmd == "publish":
@@ -199,7 +225,9 @@ def main(argv=None):
                 f"the paper protocol's (reports/published/{README_STUDY}.csv, --protocol random); print this "
                 "table's tables without --update"
             )
-        tables = readme_tables(read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol)
+        tables = readme_tables(
+            read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol
+        )
         if args.update:
             update_readme(args.update, tables)
         else:

@@ -21,7 +21,9 @@ from .tables import PAPER_METHODS, activity_label, latex_escape, summarize
 
 def _pairs(s, protocol, n):
     d = s[(s["protocol"] == protocol) & (s["n_train"] == n)]
-    return d.pivot_table(index=["source", "activity", "paper_activity"], columns="method", values="mean")
+    return d.pivot_table(
+        index=["source", "activity", "paper_activity"], columns="method", values="mean"
+    )
 
 
 def nobreak(text):
@@ -42,7 +44,7 @@ def _listing(items):
 
 
 def _each(names):
-    """"X" for one name, "each of X, Y and Z" for several."""
+    """ "X" for one name, "each of X, Y and Z" for several."""
     names = list(names)
     return names[0] if len(names) == 1 else "each of " + _listing(names)
 
@@ -75,7 +77,9 @@ def paper_pm_count(paper, pm="PM"):
     error than every other method: ``(k, n)``; ``(0, 0)`` without a paper table."""
     if paper is None or paper.empty:
         return 0, 0
-    w = paper.pivot_table(index=["table", "activity", "n_train"], columns="method", values="mean_deg")
+    w = paper.pivot_table(
+        index=["table", "activity", "n_train"], columns="method", values="mean_deg"
+    )
     if pm not in w.columns:
         return 0, 0
     others = [c for c in w.columns if c != pm]
@@ -97,18 +101,28 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     refs = [m for m in references if m in methods]
     L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
     order = ("random", "contiguous", "cross_trial")
-    protocols = [p for p in order if p in set(df["protocol"])] + sorted(set(df["protocol"]) - set(order))
+    protocols = [p for p in order if p in set(df["protocol"])] + sorted(
+        set(df["protocol"]) - set(order)
+    )
     sources = list(dict.fromkeys(df["source"]))
     if pm not in methods:
         variants = [m for m in methods if m.startswith(pm)]
-        return [f"No method named {latex_escape(pm)} was run, so the paper's claims about it are not checked here"
-                + (f"; the PM variants run ({', '.join(L(m) for m in variants)}) are compared in the section "
-                   "``Why PM trails the paper here''." if variants else ".")]
+        return [
+            f"No method named {latex_escape(pm)} was run, so the paper's claims about it are not checked here"
+            + (
+                f"; the PM variants run ({', '.join(L(m) for m in variants)}) are compared in the section "
+                "``Why PM trails the paper here''."
+                if variants
+                else "."
+            )
+        ]
     sizes = sorted(df["n_train"].unique())
     k_paper, n_paper = paper_pm_count(paper, pm)
     in_paper = (
         f"in the paper's Tables I and II, PM has a lower error than every other method in {k_paper} of the "
-        f"{n_paper} (activity, $N$) rows. " if n_paper else ""
+        f"{n_paper} (activity, $N$) rows. "
+        if n_paper
+        else ""
     )
     for protocol in protocols:
         tag = latex_escape(protocol.replace("_", "-").capitalize()) + " protocol"
@@ -133,7 +147,11 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
                 )
             out.append(text + ".")
     for protocol in protocols:
-        tag = "" if protocol == "random" else f" ({latex_escape(protocol.replace('_', '-'))} protocol)"
+        tag = (
+            ""
+            if protocol == "random"
+            else f" ({latex_escape(protocol.replace('_', '-'))} protocol)"
+        )
         for n in sizes:
             t = _pairs(s, protocol, n)
             if pm not in t.columns:
@@ -161,7 +179,9 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     # paired per split: the same split for every method, so compare seed by seed
     r = df[df["protocol"] == "random"]
     if baselines and not r.empty:
-        w = r.pivot_table(index=["source", "activity", "n_train", "seed"], columns="method", values="error")
+        w = r.pivot_table(
+            index=["source", "activity", "n_train", "seed"], columns="method", values="error"
+        )
         bl = [b for b in baselines if b in w.columns]
         if pm in w.columns and bl:
             w = w.dropna(subset=[pm] + bl)
@@ -174,8 +194,12 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
     if paper is not None and not r.empty:
         sr = s[s["protocol"] == "random"].copy()
         sr["label"] = sr["method"].map(lambda m: labels.get(m, m))
-        m = sr.merge(paper, left_on=["key", "n_train", "label"], right_on=["key", "n_train", "method"],
-                     suffixes=("", "_paper"))
+        m = sr.merge(
+            paper,
+            left_on=["key", "n_train", "label"],
+            right_on=["key", "n_train", "method"],
+            suffixes=("", "_paper"),
+        )
         per_source = []
         order = [labels.get(mm, mm) for mm in methods]
         for src in sources:
@@ -185,7 +209,9 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             groups = dict(list(g_src.groupby("label", sort=False)))
             parts = [
                 f"{latex_escape(lab)} {float(np.median(g['mean'] / g['mean_deg'])):.2f}"
-                for lab, g in sorted(groups.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else 99)
+                for lab, g in sorted(
+                    groups.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else 99
+                )
             ]
             per_source.append(f"on the {latex_escape(src)} data, " + ", ".join(parts))
         if per_source:
@@ -198,7 +224,9 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
             )
     # protocol effect
     if set(protocols) == {"random", "contiguous"}:
-        w = s.pivot_table(index=["source", "activity", "method", "n_train"], columns="protocol", values="mean").dropna()
+        w = s.pivot_table(
+            index=["source", "activity", "method", "n_train"], columns="protocol", values="mean"
+        ).dropna()
         per_source = []
         for src in sources:
             if src not in w.index.get_level_values("source"):
@@ -212,7 +240,8 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
         if per_source:
             out.append(
                 "Mean error under the contiguous protocol divided by that under the random protocol (median "
-                "over activities and $N$; above 1: the contiguous protocol is harder): " + "; ".join(per_source)
+                "over activities and $N$; above 1: the contiguous protocol is harder): "
+                + "; ".join(per_source)
                 + ". Random frames of one sequence put near-duplicates of test frames in the training set."
             )
     # calibration
@@ -285,34 +314,41 @@ def parameters_table(df, *, labels, defaults):
 
     def cell(pairs):
         # a line may break after each "|" of a CV list (tt text has no other break points)
-        items = [latex_escape(f"{k}={v}").replace("-", "-{}").replace("|", r"|\allowbreak{}") for k, v in pairs]
+        items = [
+            latex_escape(f"{k}={v}").replace("-", "-{}").replace("|", r"|\allowbreak{}")
+            for k, v in pairs
+        ]
         return ", ".join(items) if items else r"\textrm{none}"
 
     rows = []
     for m, (seen, default) in used.items():
-        set_pairs = [(k, "|".join(_fmt_value(x) for x in vals) + (" (CV)" if len(vals) > 1 else ""))
-                     for k, vals in seen.items()]
+        set_pairs = [
+            (k, "|".join(_fmt_value(x) for x in vals) + (" (CV)" if len(vals) > 1 else ""))
+            for k, vals in seen.items()
+        ]
         dflt_pairs = [(k, _fmt_value(v)) for k, v in default.items()]
         name = latex_escape(labels.get(m, m))
         cls = latex_escape(str(est.get(m, "")).split(":")[-1])
         rows.append(rf"{name} & \texttt{{{cls}}} & {cell(set_pairs)} & {cell(dflt_pairs)} \\")
-    return "\n".join([
-        r"\begin{table}[H]",
-        r"\centering\footnotesize",
-        r"\caption{Parameters each method ran with: those set by the configuration or chosen by cross-validation "
-        r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
-        r"others.}",
-        r"\label{tab:parameters}",
-        r"\begin{tabularx}{\linewidth}{@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
-        r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}}",
-        r"\toprule",
-        r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\",
-        r"\midrule",
-        *rows,
-        r"\bottomrule",
-        r"\end{tabularx}",
-        r"\end{table}",
-    ])
+    return "\n".join(
+        [
+            r"\begin{table}[H]",
+            r"\centering\footnotesize",
+            r"\caption{Parameters each method ran with: those set by the configuration or chosen by cross-validation "
+            r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
+            r"others.}",
+            r"\label{tab:parameters}",
+            r"\begin{tabularx}{\linewidth}{@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
+            r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}}",
+            r"\toprule",
+            r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\",
+            r"\midrule",
+            *rows,
+            r"\bottomrule",
+            r"\end{tabularx}",
+            r"\end{table}",
+        ]
+    )
 
 
 def setup_text(df, *, labels):
@@ -334,13 +370,18 @@ def setup_text(df, *, labels):
         "none": "as configured (no cross-validation)",
     }
     return [
-        "Data: " + "; ".join(f"{latex_escape(s)}: {', '.join(a)}" for s, a in sources.items()) + ".",
+        "Data: "
+        + "; ".join(f"{latex_escape(s)}: {', '.join(a)}" for s, a in sources.items())
+        + ".",
         f"Methods: {', '.join(methods)}.",
         f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} {splits} per size; "
         f"protocol: {latex_escape(', '.join(sorted(df['protocol'].unique())))}; "
         f"pose transform: {latex_escape(', '.join(sorted(df['pose_transform'].unique())))}.",
-        "Hyper-parameters: " + "; ".join(how.get(c, latex_escape(c)) for c in cv or ["none"])
-        + " (configuration key \\texttt{cv.mode}: " + latex_escape(", ".join(cv) or "none") + "). "
+        "Hyper-parameters: "
+        + "; ".join(how.get(c, latex_escape(c)) for c in cv or ["none"])
+        + " (configuration key \\texttt{cv.mode}: "
+        + latex_escape(", ".join(cv) or "none")
+        + "). "
         "Table~\\ref{tab:parameters} lists the parameters each method ran with.",
     ]
 
@@ -355,13 +396,17 @@ def write_generated(path, df, paper, *, labels, defaults=None, study=None):
     if study is not None:
         name, folder = study
         # \nolinkurl (hyperref's url) breaks paths at slashes, which \texttt cannot
-        lines.insert(0, f"Study: \\textbf{{{latex_escape(name)}}} (configuration key \\texttt{{study}}; results in "
-                        f"\\nolinkurl{{{folder}/}}, aggregate table "
-                        f"\\nolinkurl{{{folder}/aggregate/results.csv}}).")
+        lines.insert(
+            0,
+            f"Study: \\textbf{{{latex_escape(name)}}} (configuration key \\texttt{{study}}; results in "
+            f"\\nolinkurl{{{folder}/}}, aggregate table "
+            f"\\nolinkurl{{{folder}/aggregate/results.csv}}).",
+        )
     body += [" ".join(lines), ""]
     body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
     items = findings(df, paper, labels=labels) or [
-        "No sentence applies to what was run (the findings compare PM with the paper's baselines and references)."]
+        "No sentence applies to what was run (the findings compare PM with the paper's baselines and references)."
+    ]
     body += [r"\section{Findings}", r"\begin{itemize}"]
     body += [r"\item " + f for f in items]
     body += [r"\end{itemize}", ""]
@@ -409,28 +454,46 @@ def missing_data_note(source, status):
         names = _listing([nobreak(pa) for t in left_out for pa in PAPER_TABLES[t]])
         one = len(left_out) == 1
         lines.append(
-            ("Table " if one else "Tables ") + _listing(left_out) + f" ({names}) "
-            + ("is" if one else "are") + f" not shown for the {latex_escape(source)} data: this study has none of "
-            + ("its" if one else "their") + " activities on that source, so every row would be empty."
+            ("Table " if one else "Tables ")
+            + _listing(left_out)
+            + f" ({names}) "
+            + ("is" if one else "are")
+            + f" not shown for the {latex_escape(source)} data: this study has none of "
+            + ("its" if one else "their")
+            + " activities on that source, so every row would be empty."
         )
     for kind, items in by_kind.items():
         names = _listing([nobreak(pa) for pa, _ in items])
         if kind == "none":
-            lines.append(f"{names}: config/datasets.yaml has no {latex_escape(source)} data set for "
-                         + ("it." if len(items) == 1 else "them."))
+            lines.append(
+                f"{names}: config/datasets.yaml has no {latex_escape(source)} data set for "
+                + ("it." if len(items) == 1 else "them.")
+            )
         elif kind == "here":
             ids = _listing([tt(st["activity"]) for _, st in items])
-            lines.append(f"{names}: the data are here; add {ids} to the configuration key "
-                         f"{tt('study_activities.' + source)} to study " + ("it." if len(items) == 1 else "them."))
+            lines.append(
+                f"{names}: the data are here; add {ids} to the configuration key "
+                f"{tt('study_activities.' + source)} to study "
+                + ("it." if len(items) == 1 else "them.")
+            )
         elif kind == "download":
-            lines.append(f"{names}: the data are not on this machine; these commands download and build them:")
+            lines.append(
+                f"{names}: the data are not on this machine; these commands download and build them:"
+            )
             lines += [r"\hspace*{1.5em}" + tt(st["command"]) for _, st in items]
         else:
             missing = sorted({f for _, st in items for f in st.get("missing", [])})
             lines.append(f"{names}: input files missing ({latex_escape(', '.join(missing))}).")
     return (
-        r"\paragraph{Activities of the paper without data (" + latex_escape(source) + r").}" + "\n"
-        + r"\begin{flushleft}\small" + "\n" + "\\\\\n".join(lines) + "\n" + r"\end{flushleft}"
+        r"\paragraph{Activities of the paper without data ("
+        + latex_escape(source)
+        + r").}"
+        + "\n"
+        + r"\begin{flushleft}\small"
+        + "\n"
+        + "\\\\\n".join(lines)
+        + "\n"
+        + r"\end{flushleft}"
     )
 
 
@@ -497,13 +560,25 @@ def build_header(*, configfiles, overrides=(), when=None, root="."):
     import os
     import platform
 
-    when = when or datetime.datetime.now(datetime.timezone.utc)
+    when = when or datetime.datetime.now(datetime.UTC)
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, capture_output=True,
-                                text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=normal"], cwd=root,
-                               capture_output=True, text=True, check=True).stdout.strip()
-        code = f"git commit {commit}" + (" with uncommitted changes" if dirty else ", no uncommitted changes")
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=normal"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        code = f"git commit {commit}" + (
+            " with uncommitted changes" if dirty else ", no uncommitted changes"
+        )
     except (OSError, subprocess.CalledProcessError):
         code = "not a git checkout (commit unknown)"
     cpu = ""
@@ -528,7 +603,8 @@ def build_header(*, configfiles, overrides=(), when=None, root="."):
     body = "\n".join(rf"{k} & {v} \\" for k, v in rows)
     return (
         "\\begin{center}\\small\n\\begin{tabularx}{0.9\\linewidth}{@{}l>{\\raggedright\\arraybackslash}X@{}}\n"
-        + body + "\n\\end{tabularx}\n\\end{center}\n"
+        + body
+        + "\n\\end{tabularx}\n\\end{center}\n"
     )
 
 
@@ -544,16 +620,27 @@ def build_pdf(tex, pdf, *, root=None, log=None, header=None):
     tex = Path(tex).resolve()
     root = Path(root).resolve() if root is not None else tex.parent
     if shutil.which("latexmk") is None:
-        raise InputError("latexmk is not installed (bin/setup installs TeX Live); cannot build the PDF")
+        raise InputError(
+            "latexmk is not installed (bin/setup installs TeX Live); cannot build the PDF"
+        )
     build = root / "build"
     build.mkdir(parents=True, exist_ok=True)
     (build / "header.tex").write_text(header if header is not None else "")
-    cmd = ["latexmk", "-pdf", "-interaction=nonstopmode", "-halt-on-error", f"-outdir={build}", str(tex)]
+    cmd = [
+        "latexmk",
+        "-pdf",
+        "-interaction=nonstopmode",
+        "-halt-on-error",
+        f"-outdir={build}",
+        str(tex),
+    ]
     res = subprocess.run(cmd, cwd=root, capture_output=True, text=True)
     if log is not None:
         Path(log).write_text(res.stdout + res.stderr)
     if res.returncode != 0:
-        raise RuntimeError(f"latexmk failed on {tex} (exit {res.returncode}); see {build / tex.with_suffix('.log').name}")
+        raise RuntimeError(
+            f"latexmk failed on {tex} (exit {res.returncode}); see {build / tex.with_suffix('.log').name}"
+        )
     with atomic_path(pdf) as tmp:
         shutil.copyfile(build / tex.with_suffix(".pdf").name, tmp)
 
@@ -566,8 +653,11 @@ def latex_log_problems(text, *, max_overfull_pt=1.0):
         m = re.match(r"Overfull \\[hv]box \(([\d.]+)pt too (wide|high)\)", line)
         if m and float(m.group(1)) > max_overfull_pt:
             out.append(line)
-        elif re.search(r"LaTeX Warning: (Reference|Citation) .* undefined", line) or \
-                "There were undefined references" in line or "Rerun to get cross-references right" in line:
+        elif (
+            re.search(r"LaTeX Warning: (Reference|Citation) .* undefined", line)
+            or "There were undefined references" in line
+            or "Rerun to get cross-references right" in line
+        ):
             out.append(line)
     return out
 

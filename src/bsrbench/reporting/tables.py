@@ -19,7 +19,13 @@ from ..io import atomic_path
 #: The paper's activities per table, spelled as in the paper.
 PAPER_TABLES = {
     "I": ["Acrobatics", "Navigate", "Golf"],
-    "II": ["Throw and catch football", "Michael jackson styled motions", "Kick soccer ball", "Run", "Walk"],
+    "II": [
+        "Throw and catch football",
+        "Michael jackson styled motions",
+        "Kick soccer ball",
+        "Run",
+        "Walk",
+    ],
 }
 #: Methods of the paper's tables (their labels), in the paper's column order.
 PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
@@ -34,7 +40,11 @@ def tables_with_rows(status):
     ``status``: {paper activity: studied activity id, or a dict saying why it has no row} (the workflow's
     ``data_status``; a paper activity missing from it has no row).
     """
-    return [t for t, names in PAPER_TABLES.items() if any(isinstance(status.get(pa), str) for pa in names)]
+    return [
+        t
+        for t, names in PAPER_TABLES.items()
+        if any(isinstance(status.get(pa), str) for pa in names)
+    ]
 
 
 def paper_key(name):
@@ -104,7 +114,9 @@ def read_results(path, design=None):
     try:
         df = pd.read_csv(path)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(path, f"cannot read the aggregate table ({exc}); expected a CSV file") from exc
+        raise DataFileError(
+            path, f"cannot read the aggregate table ({exc}); expected a CSV file"
+        ) from exc
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}")
@@ -121,25 +133,36 @@ def check_rows(df, *, path):
     (protocol, source, activity, method, n_train) cell holds the same seeds as the whole table: a damaged or
     partial table must never be summarised into means. CSV row numbers in messages count the header as row 1.
     """
+
     def bad(mask, column, expected):
         if mask.any():
             i = int(np.flatnonzero(mask)[0])
             value = df[column].iloc[i]
             value = value.item() if isinstance(value, np.generic) else value
-            raise DataFileError(path, f"row {i + 2}, column {column!r}: {value!r}; expected {expected}")
+            raise DataFileError(
+                path, f"row {i + 2}, column {column!r}: {value!r}; expected {expected}"
+            )
 
     for col in ("n_train", "seed"):
         v = pd.to_numeric(df[col], errors="coerce")
         bad(~np.isfinite(v) | (v != np.round(v)), col, "a whole number")
     err = pd.to_numeric(df["error"], errors="coerce")
     bad(~np.isfinite(err) | (err < 0), "error", "a finite error >= 0 (degrees)")
-    bad(df.duplicated(KEY_COLUMNS, keep="first").to_numpy(), "seed", "one row per job (this job appears twice)")
+    bad(
+        df.duplicated(KEY_COLUMNS, keep="first").to_numpy(),
+        "seed",
+        "one row per job (this job appears twice)",
+    )
     seeds = set(df["seed"].astype(int))
-    cells = df.assign(seed=df["seed"].astype(int)).groupby(KEY_COLUMNS[:-1], sort=True)["seed"].agg(set)
+    cells = (
+        df.assign(seed=df["seed"].astype(int)).groupby(KEY_COLUMNS[:-1], sort=True)["seed"].agg(set)
+    )
     for key, got in cells.items():
         if got != seeds:
             cell = dict(zip(KEY_COLUMNS[:-1], key))
-            raise DataFileError(path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}")
+            raise DataFileError(
+                path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}"
+            )
 
 
 def design_changes(df, design):
@@ -181,7 +204,11 @@ def design_changes(df, design):
 def study_of(path):
     """The study name of an aggregate table at ``results/{study}/aggregate/results.csv``; None for another path."""
     parts = Path(path).parts
-    if len(parts) >= 4 and parts[-4:-3] == ("results",) and parts[-2:] == ("aggregate", "results.csv"):
+    if (
+        len(parts) >= 4
+        and parts[-4:-3] == ("results",)
+        and parts[-2:] == ("aggregate", "results.csv")
+    ):
         return parts[-3]
     return None
 
@@ -204,7 +231,8 @@ def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
     raise DataFileError(
         path,
         f"does not match the configuration: {missing} configured job(s) without a row, "
-        f"{extra} row(s) of jobs not configured; " + "; ".join(differ)
+        f"{extra} row(s) of jobs not configured; "
+        + "; ".join(differ)
         + f". Expected exactly the configured study: the design of {name} has changed since the table was "
         f"written. Run the study first, with the same --configfile/--config options (Snakemake reruns what "
         f"changed; add --forcerun aggregate if it finds nothing to do); or give the new design a study name of its "
@@ -227,22 +255,31 @@ def read_paper_tables(path):
     try:
         df = pd.read_csv(path)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(path, f"cannot read the paper's tables ({exc}); expected a CSV file") from exc
+        raise DataFileError(
+            path, f"cannot read the paper's tables ({exc}); expected a CSV file"
+        ) from exc
     need = {"table", "activity", "n_train", "method", "mean_deg", "std_deg"}
     if not need <= set(df.columns):
         raise DataFileError(path, f"needs columns {sorted(need)}; has {list(df.columns)}")
-    for col, expected in (("n_train", "a whole number"), ("mean_deg", "a finite number >= 0 (degrees)"),
-                          ("std_deg", "a finite number >= 0 (degrees)")):
+    for col, expected in (
+        ("n_train", "a whole number"),
+        ("mean_deg", "a finite number >= 0 (degrees)"),
+        ("std_deg", "a finite number >= 0 (degrees)"),
+    ):
         v = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)
         bad = ~np.isfinite(v) | (v < 0) | ((v != np.round(v)) if col == "n_train" else False)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise DataFileError(path, f"row {i + 2}, column {col!r}: {df[col].iloc[i]!r}; expected {expected}")
+            raise DataFileError(
+                path, f"row {i + 2}, column {col!r}: {df[col].iloc[i]!r}; expected {expected}"
+            )
     df = df.astype({"n_train": int, "mean_deg": float, "std_deg": float})
     known = {paper_key(a) for t in PAPER_TABLES.values() for a in t}
     unknown = sorted(set(df["activity"]) - {a for a in df["activity"] if paper_key(a) in known})
     if unknown:
-        raise DataFileError(path, f"unknown activities {unknown}; expected the paper's {sorted(known)}")
+        raise DataFileError(
+            path, f"unknown activities {unknown}; expected the paper's {sorted(known)}"
+        )
     df = df.copy()
     df["key"] = df["activity"].map(paper_key)
     return df
@@ -257,8 +294,12 @@ def summarize(df):
     if "paper_activity" not in df.columns:
         df["paper_activity"] = ""
     df["paper_activity"] = df["paper_activity"].fillna("").astype(str)
-    g = df.groupby(["protocol", "source", "activity", "paper_activity", "method", "n_train"], sort=True)["error"]
-    out = g.agg(mean="mean", std=lambda e: float(np.std(e, ddof=1)) if len(e) > 1 else math.nan, n="count")
+    g = df.groupby(
+        ["protocol", "source", "activity", "paper_activity", "method", "n_train"], sort=True
+    )["error"]
+    out = g.agg(
+        mean="mean", std=lambda e: float(np.std(e, ddof=1)) if len(e) > 1 else math.nan, n="count"
+    )
     out = out.reset_index()
     out["key"] = out["paper_activity"].map(paper_key)
     return out
@@ -266,8 +307,18 @@ def summarize(df):
 
 # --------------------------------------------------------------------------------------------------- LaTeX
 def latex_escape(text):
-    repl = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-            "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+    repl = {
+        "\\": r"\textbackslash{}",
+        "&": r"\&",
+        "%": r"\%",
+        "$": r"\$",
+        "#": r"\#",
+        "_": r"\_",
+        "{": r"\{",
+        "}": r"\}",
+        "~": r"\textasciitilde{}",
+        "^": r"\textasciicircum{}",
+    }
     return "".join(repl.get(c, c) for c in str(text))
 
 
@@ -290,7 +341,9 @@ def format_cell(mean, std, *, bold=False, digits=2):
 
 def best_mask(values, digits=2):
     """True where a value is the smallest (after rounding to ``digits``, so that printed ties are both bold)."""
-    v = np.array([np.round(x, digits) if x is not None and np.isfinite(x) else np.inf for x in values])
+    v = np.array(
+        [np.round(x, digits) if x is not None and np.isfinite(x) else np.inf for x in values]
+    )
     if not np.isfinite(v).any():
         return [False] * len(v)
     return list(v == v.min())
@@ -300,8 +353,21 @@ def _row(cells):
     return " & ".join(cells) + r" \\"
 
 
-def latex_table(summary, paper, *, source, table, methods, labels, n_train, status, protocols, digits=2,
-                skipped=None, frames=None):
+def latex_table(
+    summary,
+    paper,
+    *,
+    source,
+    table,
+    methods,
+    labels,
+    n_train,
+    status,
+    protocols,
+    digits=2,
+    skipped=None,
+    frames=None,
+):
     """LaTeX (booktabs) for one of the paper's tables on one data source, one tabular per protocol.
 
     Parameters
@@ -330,7 +396,9 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
     sizes = sorted(int(n) for n in n_train)
     s = summary[summary["source"] == source]
     p = paper[paper["table"] == table]
-    out = [f"% Table {table} of the paper on data source {source!r}; generated from the study's aggregate table"]
+    out = [
+        f"% Table {table} of the paper on data source {source!r}; generated from the study's aggregate table"
+    ]
     for protocol in protocols:
         sp = s[s["protocol"] == protocol]
         caption = (
@@ -346,10 +414,14 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             rf"\label{{tab:{table}-{source}-{protocol}}}",
             # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
             r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{3.1cm}r"
-            + "c" * len(methods) + "@{}}",
+            + "c" * len(methods)
+            + "@{}}",
             r"\toprule",
             # fixed-width headers keep the columns apart in tables whose rows are all notes
-            _row(["Activity", r"Tr.\ \#"] + [rf"\makebox[{box:.2f}cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]),
+            _row(
+                ["Activity", r"Tr.\ \#"]
+                + [rf"\makebox[{box:.2f}cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]
+            ),
         ]
         for paper_name in PAPER_TABLES[table]:
             out.append(r"\midrule")
@@ -358,7 +430,11 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
             if isinstance(activity, dict) or activity not in set(sp["activity"]):
                 from .report import NO_ROW
 
-                why = NO_ROW.get(activity.get("kind"), "no data") if isinstance(activity, dict) else activity
+                why = (
+                    NO_ROW.get(activity.get("kind"), "no data")
+                    if isinstance(activity, dict)
+                    else activity
+                )
                 why = latex_escape(why) + "; see the note below the tables"
                 note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{why}}}}}"
                 out.append(_row([name, note]))
@@ -374,15 +450,25 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                     out.append(_row([name, str(n), note]))
                     continue
                 cell = sp[(sp["activity"] == activity) & (sp["n_train"] == n)].set_index("method")
-                means = [float(cell.at[m, "mean"]) if m in cell.index else math.nan for m in methods]
+                means = [
+                    float(cell.at[m, "mean"]) if m in cell.index else math.nan for m in methods
+                ]
                 stds = [float(cell.at[m, "std"]) if m in cell.index else math.nan for m in methods]
                 bold = best_mask(means, digits)
                 out.append(
-                    _row([name, str(n)] + [format_cell(a, b, bold=c, digits=digits) for a, b, c in zip(means, stds, bold)])
+                    _row(
+                        [name, str(n)]
+                        + [
+                            format_cell(a, b, bold=c, digits=digits)
+                            for a, b, c in zip(means, stds, bold)
+                        ]
+                    )
                 )
                 if protocol != "random":
                     continue
-                pc = p[(p["key"] == paper_key(paper_name)) & (p["n_train"] == n)].set_index("method")
+                pc = p[(p["key"] == paper_key(paper_name)) & (p["n_train"] == n)].set_index(
+                    "method"
+                )
                 if not any(labels.get(m, m) in pc.index for m in methods):
                     continue
                 pl = [labels.get(m, m) for m in methods]
@@ -390,14 +476,20 @@ def latex_table(summary, paper, *, source, table, methods, labels, n_train, stat
                 ps = [float(pc.at[lab, "std_deg"]) if lab in pc.index else math.nan for lab in pl]
                 pb = best_mask(pm, digits)
                 cells = [
-                    r"\emph{" + format_cell(a, b, bold=c, digits=digits) + "}" if np.isfinite(a) else ""
+                    r"\emph{" + format_cell(a, b, bold=c, digits=digits) + "}"
+                    if np.isfinite(a)
+                    else ""
                     for a, b, c in zip(pm, ps, pb)
                 ]
                 out.append(_row([r"\emph{\quad paper}", ""] + cells))
         out += [r"\bottomrule", r"\end{tabular}"]
-        studied = set(sp["activity"])  # status: {paper activity: studied activity, or a dict saying why none}
+        studied = set(
+            sp["activity"]
+        )  # status: {paper activity: studied activity, or a dict saying why none}
         shown = [
-            a for pa in PAPER_TABLES[table] for a in [status.get(pa)]
+            a
+            for pa in PAPER_TABLES[table]
+            for a in [status.get(pa)]
             if isinstance(a, str) and a in frames and a in studied
         ]
         if shown:
