@@ -175,5 +175,7 @@ def test_input_scaler_rules_and_errors():
         InputError, match=r"input_scaling must be one of \['pooled', 'bin', 'none'\]; got 'per-bin'"
     ):
         scaling.InputScaler("per-bin").fit(X)
-    with pytest.raises(InputError, match="input_scaling must be one of"):
+    with pytest.raises(
+        InputError, match="The 'input_scaling' parameter of RidgeRegressor must be a str among"
+    ):
         RidgeRegressor(input_scaling="std").fit(X, X[:, 0])

@@ -242,22 +242,52 @@ def test_row_mismatch_and_nan_are_rejected(make):
     [
         (
             NearestNeighbourRegressor(n_neighbors=0),
-            r"n_neighbors must be an integer in \[1, inf\]; got 0",
+            r"The 'n_neighbors' parameter of NearestNeighbourRegressor must be an int in the range \[1, inf\)\. Got 0 instead",
         ),
         (NearestNeighbourRegressor(n_neighbors=13), r"n_neighbors=13 exceeds .* n_samples = 12"),
-        (NearestNeighbourRegressor(weights="gauss"), r"weights must be one of .*; got 'gauss'"),
-        (RidgeRegressor(alpha=-1.0), r"alpha must be .* \[0, inf\]; got -1.0"),
-        (RVM(width_scale=0), r"width_scale must be .* \(0, inf\]; got 0"),
-        (RVM(noise="diag"), r"noise must be one of \['per_output', 'shared'\]; got 'diag'"),
-        (RVM(max_iter=2.5), r"max_iter must be an integer .*; got 2.5"),
-        (TGP(lambda_y=0.0), r"lambda_y must be .*; got 0.0"),
-        (TGP(init="zeros"), r"init must be one of \['knn', 'ridge'\]; got 'zeros'"),
+        (
+            NearestNeighbourRegressor(weights="gauss"),
+            r"The 'weights' parameter of NearestNeighbourRegressor must be a str among .*'distance'.*Got 'gauss' instead",
+        ),
+        (
+            RidgeRegressor(alpha=-1.0),
+            r"The 'alpha' parameter of RidgeRegressor must be a float in the range \[0.0, inf\)\. Got -1.0",
+        ),
+        (
+            RVM(width_scale=0),
+            r"The 'width_scale' parameter of RVM must be a float in the range \(0.0, inf\)\. Got 0 instead",
+        ),
+        (
+            RVM(noise="diag"),
+            r"The 'noise' parameter of RVM must be a str among .*Got 'diag' instead",
+        ),
+        (
+            RVM(max_iter=2.5),
+            r"The 'max_iter' parameter of RVM must be an int in the range \[1, inf\)\. Got 2.5 instead",
+        ),
+        (
+            TGP(lambda_y=0.0),
+            r"The 'lambda_y' parameter of TGP must be a float in the range \(0.0, inf\)\. Got 0.0 instead",
+        ),
+        (
+            TGP(init="zeros"),
+            r"The 'init' parameter of TGP must be a str among .*Got 'zeros' instead",
+        ),
         (TGP(n_neighbors=50), r"n_neighbors=50 exceeds .* n_samples = 12"),
-        (TGP(width_scale_y=np.inf), r"width_scale_y must be a finite real number .*; got inf"),
-        (SR(alpha=0.0), r"alpha must be .* \(0, inf\]; got 0.0"),
-        (SR(solver="omp"), r"solver must be one of \['lars', 'lasso'\]; got 'omp'"),
-        (DDL(n_components=0), r"n_components must be an integer in \[1, inf\]; got 0"),
-        (DDL(coding="cd"), r"coding must be one of \['lasso', 'omp'\]; got 'cd'"),
+        (
+            TGP(width_scale_y=np.inf),
+            r"The 'width_scale_y' parameter of TGP must be a float in the range \(0.0, inf\)\. Got inf instead",
+        ),
+        (
+            SR(alpha=0.0),
+            r"The 'alpha' parameter of SR must be a float in the range \(0.0, inf\)\. Got 0.0 instead",
+        ),
+        (SR(solver="omp"), r"The 'solver' parameter of SR must be a str among .*Got 'omp' instead"),
+        (
+            DDL(n_components=0),
+            r"The 'n_components' parameter of DDL must be an int in the range \[1, inf\)\. Got 0 instead",
+        ),
+        (DDL(coding="cd"), r"The 'coding' parameter of DDL must be a str among .*Got 'cd' instead"),
     ],
 )
 def test_bad_parameters_name_parameter_and_value(est, match):
@@ -276,7 +306,13 @@ def test_predict_time_overrides_are_validated():
     Y = rng.normal(size=(12, 3))
     with pytest.raises(InputError, match=r"n_neighbors=20 exceeds .* n_samples = 12"):
         NearestNeighbourRegressor().fit(X, Y).predict(X, n_neighbors=20)
-    with pytest.raises(InputError, match=r"n_neighbors must be an integer .*; got -2"):
+    with pytest.raises(
+        InputError,
+        match=r"The 'n_neighbors' parameter of TGP must be an int in the range \[1, inf\) or None\. Got -2",
+    ):
         TGP().fit(X, Y).predict(X, n_neighbors=-2)
-    with pytest.raises(InputError, match=r"alpha must be .*; got -1"):
+    with pytest.raises(
+        InputError,
+        match=r"The 'alpha' parameter of SR must be a float in the range \(0.0, inf\)\. Got -1 instead",
+    ):
         SR().fit(np.abs(X), Y).predict(np.abs(X), alpha=-1)

@@ -193,17 +193,17 @@ PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
         (
             {"estimator": f"{REF}:NearestNeighbourRegressor", "params": {"weights": ["uniform"]}},
             None,
-            r"weights must be one of \['distance', 'uniform'\]; got \['uniform'\]",
+            r"The 'weights' parameter of NearestNeighbourRegressor must be a str among .*Got \['uniform'\] instead",
         ),
         (
             {"estimator": f"{REF}:RidgeRegressor", "params": {"alpha": "1e-3"}},
             None,
-            r"'methods\.M\.params' .*alpha must be a finite real number in \[0, inf\]; got '1e-3'",
+            r"'methods\.M\.params' .*The 'alpha' parameter of RidgeRegressor must be a float in the range \[0\.0, inf\)\. Got '1e-3'",
         ),
         (
             {"estimator": "bsrbench.models.tgp:TGP", "params": {"lambda_x": 0}},
             None,
-            r"lambda_x must be a finite real number in \(0, inf\]; got 0",
+            r"The 'lambda_x' parameter of TGP must be a float in the range \(0\.0, inf\)\. Got 0 instead",
         ),
         (
             {"estimator": "sklearn.linear_model:Ridge", "params": {"alpha": -1.0}},

@@ -32,14 +32,16 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.decomposition import sparse_encode
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import StrOptions
 
 from .reference import (
-    _check_choice,
-    _check_number,
+    COUNT,
+    POSITIVE,
     _format_output,
     _regressor_tags,
     _validate_fit,
     _validate_predict,
+    check_params,
 )
 from .scaling import InputScaler
 from .sr import _normalize_rows
@@ -137,6 +139,17 @@ class DDL(RegressorMixin, BaseEstimator):
     non-finite feature.
     """
 
+    _parameter_constraints = {
+        "n_components": [COUNT],
+        "alpha": [POSITIVE],
+        "pose_weight": [POSITIVE],
+        "normalize": [StrOptions({"l2", "none"})],
+        "coding": [StrOptions({"lasso", "omp"})],
+        "max_iter": [COUNT],
+        "tol": [POSITIVE],
+        "random_state": ["random_state"],
+    }
+
     def __init__(
         self,
         n_components=50,
@@ -168,13 +181,7 @@ class DDL(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        _check_number("n_components", self.n_components, low=1, integer=True)
-        _check_number("alpha", self.alpha, low=0, low_open=True)
-        _check_number("pose_weight", self.pose_weight, low=0, low_open=True)
-        _check_choice("normalize", self.normalize, {"l2", "none"})
-        _check_choice("coding", self.coding, {"lasso", "omp"})
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
-        _check_number("tol", self.tol, low=0, low_open=True)
+        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

@@ -5,23 +5,29 @@ well-known references. They share the contract of the other baselines of bsrbenc
 2-D multi-output target (or a 1-D target), ``predict(X)``; hyper-parameters are validated in ``fit`` with an
 error naming the parameter, its value and the allowed range.
 
-The module also holds the small validation helpers shared by the baselines (``rvm``, ``tgp``, ``sr``,
-``ddl``).
+The module also holds the parameter-validation helpers shared by the baselines (``rvm``, ``tgp``, ``sr``,
+``ddl``): scikit-learn's ``_parameter_constraints``, with its errors raised as ``InputError``.
 """
 
-import numbers
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import Ridge
 from sklearn.neighbors import KNeighborsRegressor
+from sklearn.utils._param_validation import (
+    Interval,
+    InvalidParameterError,
+    StrOptions,
+    validate_parameter_constraints,
+)
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..errors import InputError
 from .scaling import (
+    INPUT_SCALINGS,
     InputScaler,
     check_finite_input,
-    check_input_scaling,
     clip_to_bounds,
     output_bounds,
 )
@@ -30,38 +36,27 @@ from .scaling import (
 # shared helpers
 
 
-def _check_number(
-    name, value, *, low=None, high=None, low_open=False, integer=False, none_ok=False
-):
-    """Validate a scalar hyper-parameter; raise ``InputError`` naming it, its value and the allowed range."""
-    if value is None and none_ok:
-        return None
-    kind = numbers.Integral if integer else numbers.Real
-    ok = isinstance(value, kind) and not isinstance(value, bool)
-    if ok and not integer:
-        ok = bool(np.isfinite(value))
-    if ok and low is not None:
-        ok = value > low if low_open else value >= low
-    if ok and high is not None:
-        ok = value <= high
-    if not ok:
-        lo = "-inf" if low is None else repr(low)
-        hi = "inf" if high is None else repr(high)
-        br = "(" if (low_open or low is None) else "["
-        what = "an integer" if integer else "a finite real number"
-        extra = " or None" if none_ok else ""
-        raise InputError(f"{name} must be {what} in {br}{lo}, {hi}]{extra}; got {value!r}")
-    return value
+# constraints shared by the baselines' ``_parameter_constraints`` (scikit-learn's parameter validation)
+POSITIVE = Interval(Real, 0, None, closed="neither")
+NON_NEGATIVE = Interval(Real, 0, None, closed="left")
+COUNT = Interval(Integral, 1, None, closed="left")
+BOOLEAN = ["boolean"]
 
 
-def _check_choice(name, value, choices):
+def check_params(est, values=None):
+    """Validate ``est``'s hyper-parameters against its ``_parameter_constraints`` (or only ``values``, a
+    mapping of predict-time arguments, against the constraints of the same names).
+
+    Raises ``InputError`` with scikit-learn's message, which names the parameter, the estimator, the allowed
+    values and the value given."""
     try:
-        known = value in choices
-    except TypeError:  # unhashable (a list or mapping from a configuration file)
-        known = False
-    if not known:
-        raise InputError(f"{name} must be one of {sorted(choices)}; got {value!r}")
-    return value
+        if values is None:
+            est._validate_params()
+        else:
+            constraints = {k: est._parameter_constraints[k] for k in values}
+            validate_parameter_constraints(constraints, values, caller_name=type(est).__name__)
+    except InvalidParameterError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _validate_fit(est, X, Y, min_samples=1):
@@ -151,6 +146,10 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
     """
 
     _predict_time_params = ("n_neighbors",)
+    _parameter_constraints = {
+        "n_neighbors": [COUNT],
+        "weights": [StrOptions({"uniform", "distance"})],
+    }
 
     def __init__(self, n_neighbors=1, weights="uniform"):
         self.n_neighbors = n_neighbors
@@ -160,7 +159,7 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
         return _regressor_tags(super().__sklearn_tags__())
 
     def _check_k(self, k, n):
-        _check_number("n_neighbors", k, low=1, integer=True)
+        check_params(self, {"n_neighbors": k})
         if k > n:
             raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
         return int(k)
@@ -168,8 +167,7 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        _check_choice("weights", self.weights, {"uniform", "distance"})
-        _check_number("n_neighbors", self.n_neighbors, low=1, integer=True)
+        check_params(self)
         if n_samples is not None:
             self._check_k(self.n_neighbors, n_samples)
 
@@ -225,6 +223,12 @@ class RidgeRegressor(RegressorMixin, BaseEstimator):
     Raises ``InputError`` for a bad parameter or a non-finite feature (naming the row and column).
     """
 
+    _parameter_constraints = {
+        "alpha": [NON_NEGATIVE],
+        "standardize": BOOLEAN,
+        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+    }
+
     def __init__(self, alpha=1.0, standardize=True, input_scaling="pooled"):
         self.alpha = alpha
         self.standardize = standardize
@@ -236,9 +240,7 @@ class RidgeRegressor(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        _check_number("alpha", self.alpha, low=0)
-        _check_choice("standardize", self.standardize, {True, False})
-        check_input_scaling(self.input_scaling)
+        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

@@ -24,16 +24,19 @@ noise precision means a noise variance proportional to each output's variance.
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils._param_validation import StrOptions
 
 from .reference import (
-    _check_choice,
-    _check_number,
+    BOOLEAN,
+    COUNT,
+    POSITIVE,
     _format_output,
     _median_distance,
     _regressor_tags,
     _sq_dists,
     _validate_fit,
     _validate_predict,
+    check_params,
 )
 
 
@@ -110,6 +113,15 @@ class RVM(RegressorMixin, BaseEstimator):
         Iterations run; ``converged_`` tells whether ``tol`` was reached.
     """
 
+    _parameter_constraints = {
+        "width_scale": [POSITIVE],
+        "noise": [StrOptions({"shared", "per_output"})],
+        "normalize_y": BOOLEAN,
+        "max_iter": [COUNT],
+        "tol": [POSITIVE],
+        "prune_threshold": [POSITIVE],
+    }
+
     def __init__(
         self,
         width_scale=1.0,
@@ -139,12 +151,7 @@ class RVM(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        _check_number("width_scale", self.width_scale, low=0, low_open=True)
-        _check_choice("noise", self.noise, {"shared", "per_output"})
-        _check_choice("normalize_y", self.normalize_y, {True, False})
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
-        _check_number("tol", self.tol, low=0, low_open=True)
-        _check_number("prune_threshold", self.prune_threshold, low=0, low_open=True)
+        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

@@ -23,14 +23,17 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import Lasso, LassoLars
+from sklearn.utils._param_validation import StrOptions
 
 from .reference import (
-    _check_choice,
-    _check_number,
+    BOOLEAN,
+    COUNT,
+    POSITIVE,
     _format_output,
     _regressor_tags,
     _validate_fit,
     _validate_predict,
+    check_params,
 )
 
 
@@ -109,6 +112,16 @@ class SR(RegressorMixin, BaseEstimator):
 
     _predict_time_params = ("alpha",)
 
+    _parameter_constraints = {
+        "alpha": [POSITIVE],
+        "positive": BOOLEAN,
+        "normalize": [StrOptions({"l2", "none"})],
+        "normalize_coef": BOOLEAN,
+        "solver": [StrOptions({"lasso", "lars"})],
+        "max_iter": [COUNT],
+        "tol": [POSITIVE],
+    }
+
     def __init__(
         self,
         alpha=1e-4,
@@ -133,13 +146,7 @@ class SR(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        _check_number("alpha", self.alpha, low=0, low_open=True)
-        _check_choice("positive", self.positive, {True, False})
-        _check_choice("normalize", self.normalize, {"l2", "none"})
-        _check_choice("normalize_coef", self.normalize_coef, {True, False})
-        _check_choice("solver", self.solver, {"lasso", "lars"})
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
-        _check_number("tol", self.tol, low=0, low_open=True)
+        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
@@ -152,7 +159,9 @@ class SR(RegressorMixin, BaseEstimator):
     def sparse_code(self, X, alpha=None):
         """Codes (n_test, n_train) of the test features on the training features."""
         X = _validate_predict(self, X)
-        a = self.alpha if alpha is None else _check_number("alpha", alpha, low=0, low_open=True)
+        if alpha is not None:
+            check_params(self, {"alpha": alpha})
+        a = self.alpha if alpha is None else alpha
         B = _normalize_rows(X, self.normalize)
         return _sparse_codes(
             self.dictionary_, B, a, self.positive, self.solver, int(self.max_iter), self.tol

@@ -25,20 +25,22 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils._param_validation import StrOptions
 
 from ..errors import InputError
 from .reference import (
+    COUNT,
+    POSITIVE,
     RidgeRegressor,
-    _check_choice,
-    _check_number,
     _format_output,
     _median_distance,
     _regressor_tags,
     _sq_dists,
     _validate_fit,
     _validate_predict,
+    check_params,
 )
-from .scaling import check_input_scaling
+from .scaling import INPUT_SCALINGS
 
 _FROM_PARAMS = object()
 
@@ -94,6 +96,17 @@ class TGP(RegressorMixin, BaseEstimator):
     """
 
     _predict_time_params = ("n_neighbors", "init")
+    _parameter_constraints = {
+        "width_scale_x": [POSITIVE],
+        "width_scale_y": [POSITIVE],
+        "lambda_x": [POSITIVE],
+        "lambda_y": [POSITIVE],
+        "n_neighbors": [COUNT, None],
+        "init": [StrOptions({"knn", "ridge"})],
+        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+        "max_iter": [COUNT],
+        "tol": [POSITIVE],
+    }
 
     def __init__(
         self,
@@ -121,7 +134,7 @@ class TGP(RegressorMixin, BaseEstimator):
         return _regressor_tags(super().__sklearn_tags__())
 
     def _check_k(self, k, n):
-        _check_number("n_neighbors", k, low=1, integer=True, none_ok=True)
+        check_params(self, {"n_neighbors": k})
         if k is not None and k > n:
             raise InputError(f"n_neighbors={k} exceeds the number of training rows n_samples = {n}")
         return None if k is None else int(k)
@@ -129,12 +142,7 @@ class TGP(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
         by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        for name in ("width_scale_x", "width_scale_y", "lambda_x", "lambda_y", "tol"):
-            _check_number(name, getattr(self, name), low=0, low_open=True)
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
-        _check_choice("init", self.init, {"knn", "ridge"})
-        check_input_scaling(self.input_scaling)
-        _check_number("n_neighbors", self.n_neighbors, low=1, integer=True, none_ok=True)
+        check_params(self)
         if n_samples is not None:
             self._check_k(self.n_neighbors, n_samples)
 
@@ -161,7 +169,8 @@ class TGP(RegressorMixin, BaseEstimator):
         X = _validate_predict(self, X)
         n = self.X_train_.shape[0]
         k = self._check_k(self.n_neighbors if n_neighbors is _FROM_PARAMS else n_neighbors, n)
-        init = _check_choice("init", self.init if init is _FROM_PARAMS else init, {"knn", "ridge"})
+        init = self.init if init is _FROM_PARAMS else init
+        check_params(self, {"init": init})
         d2 = _sq_dists(X, self.X_train_)
         kx = np.exp(-d2 / (2.0 * self.width_x_**2))
         if init == "ridge":
