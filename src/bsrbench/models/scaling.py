@@ -12,27 +12,8 @@ Input scaling (``InputScaler``, a scikit-learn ``StandardScaler`` whose ``scale_
   (``floor`` = ``BIN_FLOOR``); a bin's amplification is at most ``1 / (floor * median std)``.
 - ``"none"``: the raw features (counts), as the authors used them.
 
-The unfloored per-bin standardization (``StandardScaler``) is what bsrbench used before issue 14: on a
-contiguous split of the authors' acrobatics features 27 of the 100 bins had a training std below 5% of the
-median std and test values reached 2.6e7 after scaling (N = 30, seed 0; 1.2e7 and 2.5e5 for seeds 1, 2),
-which a model linear in x carries into the pose. With the pooled scale the largest is 11 (21 over the seeds).
-The default, "pooled", was chosen by 5-fold CV on the TRAINING frames of the contiguous splits of the four
-hsc activities (``benchmarks/scaling_cv.py``, seeds 0-2, the study's fixed parameters, PM with 150 sweeps):
-blocked folds (runs of consecutive frames, so validation poses lie off the fold's training range) and, for
-ridge, shuffled folds. Mean validation error (deg) over activities, seeds and folds, without output clipping:
-
-    CV        method  N    pooled  bin   none   bin without floor (the former scaling)
-    blocked   PM      30   5.19    6.04  6.62   8.73
-    blocked   PM      100  9.92   10.41 12.07  12.67
-    blocked   Ridge   30   4.34    4.63  4.51   6.71
-    blocked   Ridge   100  7.48    8.22  7.95  10.11
-    blocked   TGP*    30   6.81    7.30  6.82   9.34
-    blocked   TGP*    100  8.38    8.70  8.66  11.38
-    shuffled  Ridge   30   3.06    3.09  3.06   4.29
-    shuffled  Ridge   100  3.88    3.71  3.60   4.18      (* TGP started from ridge)
-
-"pooled" is best (for TGP at N = 30 tied with "none") for every method and size under blocked CV (the case that matters off the training
-range); under shuffled CV (interpolation) the three bounded rules are within 0.3 deg of each other.
+The default, "pooled", was chosen by blocked 5-fold CV on the training frames (``benchmarks/scaling_cv.py``);
+the measurements and why an unfloored per-bin scale fails off the training range: docs/scaling.md.
 
 Output bounds (``output_bounds``, ``clip_to_bounds``): a prediction is clipped, per output column, to the
 training range widened by ``OUTPUT_MARGIN`` times its width on each side. Methods that return convex

@@ -89,8 +89,7 @@ class TGP(RegressorMixin, BaseEstimator):
 
     Input scaling: the kernels act on the raw features (widths relative to the median pairwise distance);
     the ridge start is ``RidgeRegressor`` with the shared input scaling (``input_scaling``, default "pooled")
-    (:mod:`bsrbench.models.scaling`), which cannot explode off the training range (issue 14: the former
-    per-feature standardization started TGP at poses of 1e7 deg). Predictions are clipped to the training
+    (:mod:`bsrbench.models.scaling`), which cannot explode off the training range. Predictions are clipped to the training
     range of each output widened by half its width on each side (:func:`bsrbench.models.scaling.output_bounds`).
     Raises ``InputError`` for a bad parameter or a non-finite feature.
     """
