@@ -269,9 +269,9 @@ def test_cd_diagram_draws(tmp_path):
     ]
     df = pd.concat(frames, ignore_index=True)
     assert cell_means(df, protocol="random", source="hsc").shape == (3, 3)
-    fig = cd_diagram(df, protocol="random", source="hsc", labels={"A": "Alpha"})
+    fig = cd_diagram(df, protocols=["random"], source="hsc", labels={"A": "Alpha"})
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert any("Alpha" in t for t in texts)
     fig.savefig(tmp_path / "cd.png")
-    one = cd_diagram(df[df.n_train == 30], protocol="random", source="hsc")
+    one = cd_diagram(df[df.n_train == 30], protocols=["random"], source="hsc")
     assert any("no ranking test" in t.get_text() for t in one.axes[0].texts)

@@ -374,22 +374,15 @@ def cd_ranks(means, *, alpha=ALPHA):
     return ranks, p.fillna(1.0)
 
 
-def cd_diagram(df, *, protocol, source, labels=None, alpha=ALPHA):
-    """The critical-difference diagram of one protocol and source (scikit-posthocs
+def cd_axis(ax, df, *, protocol, source, labels=None, alpha=ALPHA):
+    """Draw the critical-difference diagram of one protocol and source on ``ax`` (scikit-posthocs
     ``critical_difference_diagram``): methods at their mean rank over the cells, bars joining methods whose
-    pairwise Wilcoxon-Holm p >= ``alpha``. With fewer than 2 complete cells the figure says so. Returns the
-    figure."""
-    import matplotlib.pyplot as plt
+    pairwise Wilcoxon-Holm p >= ``alpha``. With fewer than 2 complete cells the axis says so instead."""
     import scikit_posthocs as sp
-
-    from .plots import TEXT_WIDTH
 
     labels = labels or {}
     means = cell_means(df, protocol=protocol, source=source)
-    fig, ax = plt.subplots(figsize=(min(TEXT_WIDTH, 6.0), 1.9))
-    title = (
-        f"{source}, {protocol.replace('_', '-')} protocol: mean rank over {means.shape[0]} cells"
-    )
+    title = f"{protocol.replace('_', '-')} protocol: mean rank over {means.shape[0]} (activity, N) cells"
     if means.shape[0] < 2 or means.shape[1] < 2:
         ax.text(
             0.5,
@@ -401,14 +394,12 @@ def cd_diagram(df, *, protocol, source, labels=None, alpha=ALPHA):
         )
         ax.set_axis_off()
         ax.set_title(title, fontsize=8)
-        return fig
+        return
     ranks, p = cd_ranks(means, alpha=alpha)
     names = {m: labels.get(m, m) for m in means.columns}
-    ranks = ranks.rename(index=names)
-    p = p.rename(index=names, columns=names)
     sp.critical_difference_diagram(
-        ranks,
-        p,
+        ranks.rename(index=names),
+        p.rename(index=names, columns=names),
         ax=ax,
         alpha=alpha,
         label_fmt_left="{label} ({rank:.2f})  ",
@@ -416,6 +407,48 @@ def cd_diagram(df, *, protocol, source, labels=None, alpha=ALPHA):
         label_props={"fontsize": 7},
         crossbar_props={"linewidth": 2},
     )
-    ax.set_title(title + f"; bars: Wilcoxon-Holm p $\\geq$ {alpha:g}", fontsize=8)
+    ax.set_title(title + f"; bars: Wilcoxon-Holm $p \\geq {alpha:g}$", fontsize=8)
+
+
+def cd_diagram(df, *, source, protocols, labels=None, alpha=ALPHA):
+    """The critical-difference diagrams of one source, one panel per protocol (:func:`cd_axis`). Returns the
+    figure."""
+    # pyplot as .plots sets it up (Agg backend, the report's fonts)
+    from .plots import TEXT_WIDTH, plt
+
+    protocols = list(protocols)
+    if not protocols:
+        raise InputError("cd_diagram needs at least one protocol")
+    fig, axes = plt.subplots(
+        len(protocols), 1, figsize=(min(TEXT_WIDTH, 6.0), 1.9 * len(protocols)), squeeze=False
+    )
+    for ax, protocol in zip(axes[:, 0], protocols):
+        cd_axis(ax, df, protocol=protocol, source=source, labels=labels, alpha=alpha)
+    fig.suptitle(f"Critical-difference diagram, {source} data", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def read_comparisons(path):
+    """Read a comparisons table (``results/{study}/aggregate/comparisons.csv`` or the published
+    ``reports/published/<study>-comparisons.csv``); DataFileError naming the file if it cannot be read or lacks a
+    column of :data:`PUBLISHED_COLUMNS`. A published table (no ``best`` column) gets ``best`` back: the
+    ``versus`` of a cell that is not PM, else PM."""
+    from ..errors import DataFileError
+
+    try:
+        c = pd.read_csv(path, keep_default_na=True)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(
+            path, f"cannot read the comparisons ({exc}); expected a CSV file"
+        ) from exc
+    missing = [k for k in PUBLISHED_COLUMNS if k not in c.columns]
+    if missing:
+        raise DataFileError(path, f"missing columns {missing}; expected {PUBLISHED_COLUMNS}")
+    if "best" not in c.columns:
+        other = c[c["versus"] != "PM"].groupby(CELL)["versus"].first()
+        c["best"] = [other.get(tuple(k), "PM") for k in c[CELL].itertuples(index=False)]
+    if "note" not in c.columns:
+        c["note"] = np.where(c["n_splits"] < 2, NO_TEST, "")
+    c["note"] = c["note"].fillna("")
+    return c
