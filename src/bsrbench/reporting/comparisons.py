@@ -294,8 +294,9 @@ def verdict(p_holm, mean_diff, *, alpha=ALPHA):
 def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
     """Per (protocol, source) and opponent ("best", ``nn``): in how many cells PM is significantly worse, tied or
     better (Holm-adjusted corrected t), and untested. Against the best: cells where PM is the best count as
-    "PM is best" (``best`` column). A DataFrame with protocol, source, versus, cells, worse, tied, better,
-    untested, pm_best."""
+    "PM is best" (``pm_best``). ``worse_wilcoxon``: the cells where PM is worse by the Wilcoxon signed-rank test
+    alone (p < ``alpha``, no allowance for overlapping splits, no correction), for contrast. A DataFrame with
+    protocol, source, versus, cells, worse, tied, better, untested, pm_best, worse_wilcoxon."""
     cols = [
         "protocol",
         "source",
@@ -306,6 +307,7 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
         "better",
         "untested",
         "pm_best",
+        "worse_wilcoxon",
     ]
     if comp.empty:
         return pd.DataFrame(columns=cols)
@@ -313,7 +315,7 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
     for (protocol, source), g in comp.groupby(["protocol", "source"], sort=True):
         cells = g.drop_duplicates(CELL)
         for what in ("best", nn):
-            counts = dict.fromkeys(("worse", "tied", "better", "untested", "pm_best"), 0)
+            counts = dict.fromkeys(cols[4:], 0)
             n = 0
             for _, c in cells.iterrows():
                 key = tuple(c[k] for k in CELL)
@@ -323,15 +325,16 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
                     counts["pm_best"] += 1
                     n += 1
                     continue
-                r = gc[(gc["method"] == pm) & (gc["versus"] == opp)]
+                r, sign = gc[(gc["method"] == pm) & (gc["versus"] == opp)], 1.0
                 if r.empty:
-                    r = gc[(gc["method"] == opp) & (gc["versus"] == pm)]
+                    r, sign = gc[(gc["method"] == opp) & (gc["versus"] == pm)], -1.0
                     if r.empty:
                         continue
-                    v = verdict(r["p_holm"].iloc[0], -r["mean_diff"].iloc[0], alpha=alpha)
-                else:
-                    v = verdict(r["p_holm"].iloc[0], r["mean_diff"].iloc[0], alpha=alpha)
-                counts[v] += 1
+                r = r.iloc[0]
+                counts[verdict(r["p_holm"], sign * r["mean_diff"], alpha=alpha)] += 1
+                counts["worse_wilcoxon"] += bool(
+                    r["p_wilcoxon"] < alpha and sign * r["mean_diff"] > 0
+                )
                 n += 1
             if n:
                 rows.append(

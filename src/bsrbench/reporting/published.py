@@ -205,21 +205,22 @@ def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
     labels = {**README_LABELS, **(labels or {})}
     t = cmp.pm_counts(comparisons, pm=pm, nn=nn)
     lines = [
-        f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test |",
-        "|" + "---|" * 9,
+        f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test | worse (Wilcoxon) |",
+        "|" + "---|" * 10,
     ]
     for r in t.itertuples(index=False):
         versus = "best method" if r.versus == "best" else labels.get(r.versus, r.versus)
         best = str(r.pm_best) if r.versus == "best" else ""
         lines.append(
             f"| {r.protocol} | {r.source} | {versus} | {r.cells} | {r.worse} | {r.tied} | {r.better} | {best} "
-            f"| {r.untested} |"
+            f"| {r.untested} | {r.worse_wilcoxon} |"
         )
     lines += [
         "",
         "Paired by split, corrected resampled t-test (Nadeau and Bengio 2003), Holm-adjusted over each cell's "
         "comparisons, significant at p < 0.05; PM best: cells where PM has the lowest mean; no test: fewer than 2 "
-        "common splits.",
+        "common splits; worse (Wilcoxon): the cells where PM is worse by the Wilcoxon signed-rank test alone "
+        "(p < 0.05, no allowance for overlapping splits, no correction).",
     ]
     return "\n".join(lines)
 
