@@ -265,7 +265,12 @@ def test_cd_ranks_by_hand():
 def test_cd_diagram_draws(tmp_path):
     frames = [
         _results(
-            {"PM": [5.0 + k, 5.5 + k], "A": [4.0 + k, 4.1 + k], "B": [4.5 + k, 6.0 + k]}, n_train=n
+            {
+                "PM": [5.0 + k, 5.5 + k],
+                "A": [4.0 + 0.7 * k, 4.1 + k],
+                "B": [4.5 + 1.3 * k, 6.0 + k],
+            },
+            n_train=n,
         )
         for k, n in enumerate((30, 60, 100))
     ]
