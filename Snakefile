@@ -74,10 +74,12 @@ rule all:
 localrules:
     all,
     aggregate,
+    comparisons,
     table,
     report_text,
     plot_error_vs_ntrain,
     plot_calibration,
+    plot_cd,
     plot_trace,
     plot_gxy,
     plot_subjective,

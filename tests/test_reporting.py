@@ -1031,3 +1031,247 @@ def test_publish_refuses_another_studys_table(tmp_path, capsys):
         == dest.with_name("quick.csv").read_bytes()
         != b"the committed paper table\n"
     )
+
+
+# ------------------------------------------------------------------------------ paired comparisons in the report
+def _paired(errors, n_test=570):
+    """errors: {(activity, method): [error per seed]} -> aggregate with n_test."""
+    rows = _rows(errors)
+    for r in rows:
+        r["n_test"] = n_test
+    return aggregate_rows(rows)
+
+
+def test_tables_do_not_import_the_report_module():
+    """Before: tables imported NO_ROW from report, which imports tables (an import cycle)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, bsrbench.reporting.tables as t; "
+        "assert 'bsrbench.reporting.report' not in sys.modules; print(t.NO_ROW['download'])"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "data not on this machine"
+
+
+def test_latex_table_marks_the_means_tied_with_the_best_and_says_so():
+    from bsrbench.reporting.comparisons import comparisons, tied_with_best
+
+    # PM ties NN1 (noise around the same level), RVM is worse by a constant 5 degrees: p = 0, never tied
+    df = _paired(
+        {
+            ("golf", "NN1"): [6.0, 7.0, 6.5],
+            ("golf", "PM"): [6.2, 6.9, 6.8],
+            ("golf", "RVM"): [11.0, 12.0, 11.5],
+        }
+    )
+    ties = tied_with_best(comparisons(df))
+    assert ties == {("random", "hsc", "golf", 30): {"NN1", "PM"}}
+    kw = dict(
+        source="hsc",
+        table="I",
+        methods=["RVM", "PM", "NN1"],
+        labels=LABELS,
+        n_train=[30],
+        protocols=["random"],
+        status={"Golf": "golf"},
+    )
+    text = latex_table(summarize(df), _paper(), ties=ties, **kw)
+    golf = next(ln for ln in text.splitlines() if ln.startswith("Golf & 30"))
+    cells = golf[:-2].split(" & ")
+    assert cells[2].startswith("11.50 $") and r"\dagger" not in cells[2]
+    assert cells[3].startswith(r"6.63$^{\dagger}$ $\pm$")
+    assert cells[4].startswith(r"\textbf{6.50}") and r"\dagger" not in cells[4]
+    assert r"$^{\dagger}$: statistically indistinguishable from the best of its row" in text
+    assert "Holm-adjusted" in text and r"$p \geq 0.05$" in text
+    plain = latex_table(summarize(df), _paper(), **kw)
+    assert r"\dagger" not in plain.split(r"\caption")[1].split("\n", 1)[1]
+    assert "No paired comparisons were made" in plain
+    # one split: no test, no mark, and the caption says so
+    one = df[df["seed"] == 0]
+    t1 = latex_table(summarize(one), _paper(), ties=tied_with_best(comparisons(one)), **kw)
+    assert "no row was tested and none is marked" in t1
+
+
+def test_findings_count_pm_against_the_best_and_1nn(tmp_path):
+    from bsrbench.reporting.comparisons import comparisons
+
+    base = np.array([5.0, 5.3, 4.8, 5.1, 5.2])
+    rng = np.random.default_rng(1)
+    errors = {
+        # golf: PM worse than the best (SR) and than 1-NN by a constant: significant
+        ("golf", "SR"): list(base),
+        ("golf", "NN1"): list(base + 0.5),
+        ("golf", "PM"): list(base + 2.0),
+        # acrobatics: PM is the best; 1-NN ties with it (noise)
+        ("acrobatics", "SR"): list(base + 3.0),
+        ("acrobatics", "NN1"): list(base + rng.normal(0, 0.1, 5)),
+        ("acrobatics", "PM"): list(base - 0.05),
+    }
+    df = _paired(errors)
+    comp = comparisons(df)
+    labels = {"NN1": "1-NN", "PM": "PM", "SR": "SR"}
+    text = " ".join(findings(df, _paper(), labels=labels, comparisons=comp))
+    assert (
+        "PM is significantly worse, tied or better than the best method of the cell: worse in 1, tied in 0, "
+        "better in 0, and PM is itself the best in 1 of the 2 cells; than 1-NN: worse in 1, tied in 1, better in 0 "
+        "of the 2 cells. By the Wilcoxon signed-rank test alone (no allowance for the overlap of the splits or for "
+        "the number of comparisons) PM is worse than the best method of the cell in 0 and than 1-NN in 0"
+        in text
+    )  # 5 splits: the smallest two-sided Wilcoxon p is 2/32 > 0.05
+    out = tmp_path / "findings.tex"
+    write_generated(out, df, _paper(), labels=labels, comparisons=comp)
+    tex = out.read_text()
+    assert r"\label{tab:pm-counts}" in tex
+    assert "random & hsc & best method & 2 & 1 & 0 & 0 & 1 & 0 & 0" in tex
+    assert "random & hsc & 1-NN & 2 & 1 & 1 & 0 &  & 0 & 0" in tex
+    # without comparisons: neither the sentence nor the table
+    write_generated(out, df, _paper(), labels=labels)
+    assert "tab:pm-counts" not in out.read_text()
+
+
+def test_readme_tables_mark_ties_and_count_pm(tmp_path, capsys):
+    from bsrbench.reporting.comparisons import comparisons
+    from bsrbench.reporting.published import TIE_LEGEND, main, readme_counts, readme_tables
+
+    df = _paired(
+        {
+            ("golf", "NN1"): [6.0, 7.0, 6.5],
+            ("golf", "PM"): [6.2, 6.9, 6.8],
+            ("golf", "RVM"): [11.0, 12.0, 11.5],
+        }
+    )
+    t = readme_tables(df, _paper())["hsc"]
+    row = next(ln for ln in t.splitlines() if ln.startswith("| golf | 30 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert (
+        cells[2].startswith("11.50±")
+        and cells[3].startswith("6.63†±")
+        and cells[4].startswith("**6.50**±")
+    )
+    assert t.endswith(TIE_LEGEND)
+    counts = readme_counts(comparisons(df))
+    assert "| random | hsc | best method | 1 | 0 | 1 | 0 | 0 | 0 | 0 |" in counts
+    assert "| random | hsc | 1-NN | 1 | 0 | 1 | 0 |  | 0 | 0 |" in counts
+    # --update fills the optional counts markers
+    src = tmp_path / "paper.csv"
+    df.to_csv(src, index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text(
+        "<!-- results-table:hsc -->\nSTALE\n<!-- /results-table:hsc -->\n"
+        "<!-- results-counts -->\nSTALE\n<!-- /results-counts -->\n"
+    )
+    assert main(["readme", str(src), "--update", str(readme)]) == 0
+    text = readme.read_text()
+    assert "STALE" not in text and "6.63†" in text and "| random | hsc | 1-NN |" in text
+    readme.write_text("<!-- results-table:hsc -->\nSTALE\n<!-- /results-table:hsc -->\n")
+    assert main(["readme", str(src), "--update", str(readme)]) == 0
+    assert "no markers '<!-- results-counts -->'" in capsys.readouterr().err
+
+
+def test_published_comparisons_are_the_paper_table_s_and_have_exactly_the_columns(tmp_path, capsys):
+    from bsrbench.reporting.comparisons import PUBLISHED_COLUMNS
+    from bsrbench.reporting.published import main
+
+    dest = tmp_path / "paper-comparisons.csv"
+    assert main(["comparisons", str(PUBLISHED), str(dest)]) == 0
+    got = pd.read_csv(dest)
+    assert list(got.columns) == PUBLISHED_COLUMNS
+    committed = pd.read_csv(PUBLISHED.with_name("paper-comparisons.csv"))
+    pd.testing.assert_frame_equal(got, committed)
+    # one cell by hand: SR against PM, hsc golf N = 30 (corrected t with the rows' n_test)
+    paper = pd.read_csv(PUBLISHED)
+    cell = paper[(paper.source == "hsc") & (paper.activity == "golf") & (paper.n_train == 30)]
+    e = cell.pivot(index="seed", columns="method", values="error")
+    d = (e["SR"] - e["PM"]).to_numpy()
+    n_test = float(cell["n_test"].mean())
+    se = np.sqrt((1 / d.size + n_test / 30) * d.var(ddof=1))
+    from scipy import stats
+
+    p = 2 * stats.t.sf(abs(d.mean() / se), d.size - 1)
+    row = got[(got.source == "hsc") & (got.activity == "golf") & (got.n_train == 30)]
+    row = row[(row.method == "SR") & (row.versus == "PM")].iloc[0]
+    assert row.n_splits == 10 and row.mean_diff == pytest.approx(d.mean())
+    assert row.p_corrected_t == pytest.approx(p)
+    # the destination is named after the table
+    assert main(["comparisons", str(PUBLISHED), str(tmp_path / "other.csv")]) == 2
+    assert "go to 'paper-comparisons.csv'" in capsys.readouterr().err
+
+
+def _chained(rhats, *, extra=None):
+    """Rows of PMK16 and NN1 (golf, contiguous, N = 30), one per split, PMK16 with 4 chains and these R-hats of
+    the log-likelihood and g_xy; ``extra``: {column: value per split} (tail ESS, MCSE)."""
+    from bsrbench.reporting import convergence as conv
+
+    rows = []
+    for seed, (rl, rg) in enumerate(rhats):
+        base = dict(
+            protocol="contiguous", source="hsc", activity="golf", paper_activity="Golf", n_train=30
+        )
+        rows.append(dict(base, method="NN1", seed=seed, error=7.0))
+        r = dict(
+            base,
+            method="PMK16",
+            seed=seed,
+            error=6.0,
+            n_chains=4,
+            r_hat_log_likelihood=rl,
+            r_hat_g_xy=rg,
+            ess_bulk_log_likelihood=300.0 + seed,
+            ess_bulk_test_error=200.0 + seed,
+            params='{"n_atoms": 16}',
+        )
+        for k, v in (extra or {}).items():
+            r[k] = v[seed]
+        rows.append(r)
+    return conv.with_convergence_columns(pd.DataFrame(rows))
+
+
+def test_convergence_at_both_thresholds_with_tail_ess_and_mcse():
+    from bsrbench.reporting import convergence as conv
+
+    # splits: both below 1.01; 1.02 (below 1.05 only); 1.005 and 1.2 (neither)
+    df = _chained([(1.001, 1.009), (1.02, 1.0), (1.005, 1.2)])
+    t = conv.convergence_summary_table(df).set_index("method")
+    assert t.at["PMK16", "converged"] == pytest.approx(2 / 3)
+    assert t.at["PMK16", "converged_strict"] == pytest.approx(1 / 3)
+    assert np.isnan(t.at["PMK16", "ess_tail_log_likelihood"]) and np.isnan(
+        t.at["PMK16", "mcse_test_error"]
+    )
+    tex = conv.convergence_latex(df, labels={})
+    row = next(ln for ln in tex.splitlines() if ln.startswith("PMK16 &"))
+    # R-hat l, g_xy, g_s, err; bulk ESS l, err; tail ESS l, err; MCSE err; shares < 1.01, < 1.05
+    assert row == (
+        r"PMK16 & 30 & 3 & 4 & 1.02 & 1.20 & -- & -- & 300 & 200 & -- & -- & -- & 33\% & 67\% \\"
+    )
+    assert r"$\hat R < 1.01$ (Vehtari et al.\ 2021) and $< 1.05$" in tex
+    # with the per-job tail ESS and MCSE columns: the smallest tail ESS and the largest MCSE over splits
+    df = _chained(
+        [(1.001, 1.009), (1.02, 1.0), (1.005, 1.2)],
+        extra={
+            "ess_tail_log_likelihood": [150.0, 90.0, 120.0],
+            "ess_tail_test_error": [80.0, 95.0, 70.0],
+            "mcse_test_error": [0.012, 0.034, 0.021],
+        },
+    )
+    t = conv.convergence_summary_table(df).set_index("method")
+    assert (
+        t.at["PMK16", "ess_tail_log_likelihood"] == 90.0
+        and t.at["PMK16", "mcse_test_error"] == 0.034
+    )
+    row = next(
+        ln for ln in conv.convergence_latex(df, labels={}).splitlines() if ln.startswith("PMK16 &")
+    )
+    assert "& 300 & 200 & 90 & 70 & 0.034 & 33\\% & 67\\%" in row
+    # the goal table keeps 1.05 and adds 1.01: one cell, converged at 1.05 only if every split is
+    g = conv.goal_table(_chained([(1.001, 1.009), (1.02, 1.0)]), variants=["PMK16"]).iloc[0]
+    assert (g["converged"], g["both"], g["converged_strict"], g["both_strict"]) == (1, 1, 0, 0)
+    g = conv.goal_table(_chained([(1.001, 1.009), (1.002, 1.0)]), variants=["PMK16"]).iloc[0]
+    assert (g["converged_strict"], g["both_strict"]) == (1, 1)
+    tex = conv.goal_latex(_chained([(1.001, 1.009), (1.02, 1.0)]), variants=["PMK16"], labels={})
+    assert "PMK16 & yes & 1 & 1 & 1 & 1 & 1.0 & 0 & 0" in tex and r"$\hat R < 1.01$" in tex
+    text = conv.goal_sentence(
+        _chained([(1.001, 1.009), (1.02, 1.0)]), variants=["PMK16"], labels={}
+    )
+    assert r"At $\hat R < 1.01$ every split converged in 0 of its cells" in text

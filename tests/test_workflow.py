@@ -477,6 +477,8 @@ CLUSTER_RULES = {"fit", "fit_chain", "cv", "features_codebook", "features_mocap"
 LOCAL_RULES = {
     "all",
     "aggregate",
+    "comparisons",
+    "plot_cd",
     "table",
     "report_text",
     "plot_error_vs_ntrain",
@@ -528,6 +530,8 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
     submitted = set(re.findall(r"^rule (\w+):", out, re.M))
     assert ran_local == {
         "aggregate",
+        "comparisons",
+        "plot_cd",
         "table",
         "report_text",
         "plot_error_vs_ntrain",

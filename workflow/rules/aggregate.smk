@@ -19,3 +19,24 @@ rule aggregate:
     threads: 1
     script:
         "../scripts/aggregate.py"
+
+
+# Paired comparisons per (protocol, source, activity, N): every method against PM and the cell's best.
+rule comparisons:
+    input:
+        f"{RESULTS}/aggregate/results.csv",
+    output:
+        report(
+            f"{RESULTS}/aggregate/comparisons.csv",
+            category="Results",
+            caption="../report/comparisons.rst",
+        ),
+    log:
+        f"{LOGS}/aggregate/comparisons.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/aggregate/comparisons.tsv"
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    script:
+        "../scripts/comparisons.py"

@@ -6,6 +6,7 @@
 rule table:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
+        comparisons=f"{RESULTS}/aggregate/comparisons.csv",
         paper="resources/paper-tables.csv",
     output:
         report(
@@ -37,6 +38,7 @@ rule table:
 rule report_text:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
+        comparisons=f"{RESULTS}/aggregate/comparisons.csv",
         paper="resources/paper-tables.csv",
     output:
         findings=f"{REPORTS}/tables/findings.tex",
@@ -53,6 +55,7 @@ rule report_text:
         study=config["study"],
         tables=table_targets(),
         figures=figure_targets("pdf"),
+        cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         status={s: data_status(s) for s in report_sources()},
         stick_kinds={
             s: sorted({str(stick_kind(s, a)) for a in config["study_activities"][s]})
@@ -87,6 +90,30 @@ rule plot_error_vs_ntrain:
         labels=method_labels(),
     script:
         "../scripts/plots_error.py"
+
+
+rule plot_cd:
+    input:
+        results=f"{RESULTS}/aggregate/results.csv",
+    output:
+        pdf=f"{REPORTS}/figures/cd_{{source}}.pdf",
+        png=report(
+            f"{REPORTS}/figures/cd_{{source}}.png",
+            category="Figures",
+            subcategory="{source}",
+            caption="../report/cd.rst",
+        ),
+    log:
+        f"{LOGS}/report/cd_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        design=study_design(),
+        protocols=config["protocols"],
+        labels=method_labels(),
+    script:
+        "../scripts/plots_cd.py"
 
 
 rule plot_calibration:
@@ -222,6 +249,7 @@ rule report_pdf:
         text=rules.report_text.output,
         tables=table_targets(),
         figures=figure_targets("pdf"),
+        cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         why_pm=rules.report_why_pm.output.section,
         why_pm_figures=why_pm_figures("pdf"),
     output:

@@ -5,6 +5,7 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")
 
+from bsrbench.reporting.comparisons import read_comparisons
 from bsrbench.reporting.plots import (
     PROTOCOL_LINE_NAMES,
     PROTOCOL_LINESTYLES,
@@ -111,6 +112,13 @@ def caption(kind, source):
             "with predictive intervals; line: mean over seeds, band: minimum to maximum. A calibrated method "
             "follows the dashed diagonal."
         )
+    if kind == "cd":
+        return (
+            f"Critical-difference diagrams on the {source} data, one per protocol (Dem\\v{{s}}ar 2006): each "
+            "method at its mean rank over the (activity, $N$) cells in which every method ran, by mean error over "
+            "the splits (1: lowest error); a bar joins methods that pairwise Wilcoxon signed-rank tests over the "
+            "cells, Holm-corrected, do not tell apart ($p \\geq 0.05$; Benavoli, Corani and Mangili 2016)."
+        )
     raise ValueError(f"no caption for figure kind {kind!r}")
 
 
@@ -124,6 +132,7 @@ write_generated(
         sm.params.study,
         Path(sm.input.results).parent.parent.as_posix(),
     ),  # results/{study}/aggregate/..
+    comparisons=read_comparisons(sm.input.comparisons),
 )
 KINDS = ("error_vs_ntrain", "subjective", "calibration")
 figures = []
@@ -131,6 +140,9 @@ for f in sm.params.figures:
     stem = Path(f).stem
     kind = next(k for k in KINDS if stem.startswith(k))
     figures.append((Path(f).relative_to(root), caption(kind, stem[len(kind) + 1 :])))
+figures += [
+    (Path(f).relative_to(root), caption("cd", Path(f).stem[3:])) for f in sm.params.cd_figures
+]
 status = dict(sm.params.status)
 write_body(
     sm.output.body,

@@ -4,6 +4,7 @@ import sys
 
 sys.stderr = open(snakemake.log[0], "w")
 
+from bsrbench.reporting.comparisons import read_comparisons, tied_with_best
 from bsrbench.reporting.tables import (
     latex_table,
     read_paper_tables,
@@ -25,5 +26,6 @@ text = latex_table(
     protocols=list(sm.params.protocols),
     skipped={p: {a: list(v) for a, v in d.items()} for p, d in dict(sm.params.skipped).items()},
     frames=dict(sm.params.frames),
+    ties=tied_with_best(read_comparisons(sm.input.comparisons)),
 )
 write_text(sm.output[0], text)

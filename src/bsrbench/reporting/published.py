@@ -16,9 +16,18 @@ silently replace ``paper.csv``. For a source outside ``results/`` name the study
 
     python -m bsrbench.reporting.published publish --study paper /elsewhere/results.csv reports/published/paper.csv
 
+``comparisons`` writes the paired comparisons of a published table (:mod:`bsrbench.reporting.comparisons`; no
+refit), with exactly the columns of :data:`bsrbench.reporting.comparisons.PUBLISHED_COLUMNS`, to
+``reports/published/<study>-comparisons.csv``::
+
+    python -m bsrbench.reporting.published comparisons reports/published/paper.csv \\
+        reports/published/paper-comparisons.csv
+
 ``readme`` prints the markdown tables (one per data source, random protocol: mean +- std over seeds, the paper's
-number in brackets, the lowest mean of each row in bold) or, with ``--update``, replaces the text between the
-markers ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README.
+number in brackets, the lowest mean of each row in bold, a dagger on the means statistically indistinguishable from
+it) and the count of PM's significant differences, or, with ``--update``, replaces the text between the markers
+``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README (and between
+``<!-- results-counts -->`` and ``<!-- /results-counts -->`` where the README has these markers).
 """
 
 import argparse
@@ -31,8 +40,9 @@ import numpy as np
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
+from . import comparisons as cmp
 from .convergence import with_convergence_columns
-from .tables import KEY_COLUMNS, best_mask, read_paper_tables, read_results, summarize
+from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
 
 #: Column order of the README's tables, and their labels.
 README_METHODS = ("RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge")
@@ -107,9 +117,47 @@ def publish(src, dest, study=None):
     return df
 
 
-def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, labels=None, digits=2):
-    """{source: markdown table} of the README: one row per (activity, N), one column per method."""
+def publish_comparisons(src, dest):
+    """Write the paired comparisons of the published table ``src`` (checked as :func:`.tables.read_results`
+    checks it) to ``dest`` with exactly :data:`.comparisons.PUBLISHED_COLUMNS`. ``dest`` must be
+    ``<study>-comparisons.csv`` next to ``<study>.csv`` naming: InputError otherwise, before anything is read."""
+    want = Path(src).stem + "-comparisons.csv"
+    if Path(dest).name != want:
+        raise InputError(
+            f"the comparisons of {str(src)!r} go to {want!r} (reports/published/<study>-comparisons.csv); got "
+            f"{str(dest)!r}. The right command: python -m bsrbench.reporting.published comparisons {src} "
+            f"{Path(dest).with_name(want)}"
+        )
+    if not Path(dest).parent.is_dir():
+        raise DataFileError(
+            dest, f"cannot write the comparisons: folder {str(Path(dest).parent)!r} does not exist"
+        )
+    out = cmp.published(cmp.comparisons(read_results(src)))
+    try:
+        with atomic_path(dest) as tmp:
+            out.to_csv(tmp, index=False)
+    except OSError as exc:
+        raise DataFileError(dest, f"cannot write the comparisons ({exc.strerror or exc})") from exc
+    return out
+
+
+TIE_LEGEND = (
+    f"Bold: the lowest mean of the row; {TIE_TEXT}: statistically indistinguishable from it (paired by split, "
+    "corrected resampled t-test of Nadeau and Bengio 2003, Holm-adjusted over the row's comparisons, p >= 0.05; "
+    "reports/published/paper-comparisons.csv)."
+)
+
+
+def readme_tables(
+    df, paper, *, protocol="random", methods=README_METHODS, labels=None, digits=2, comparisons=None
+):
+    """{source: markdown table} of the README: one row per (activity, N), one column per method, the means
+    tied with the row's best marked (:data:`.tables.TIE_TEXT`, from ``comparisons``, computed from ``df`` if None),
+    and the legend under the table."""
     labels = {**README_LABELS, **(labels or {})}
+    if comparisons is None:
+        comparisons = cmp.comparisons(df[df["protocol"] == protocol])
+    ties = cmp.tied_with_best(comparisons)
     s = summarize(df[df["protocol"] == protocol])
     if s.empty:
         raise InputError(f"no rows of protocol {protocol!r} to tabulate")
@@ -124,12 +172,15 @@ def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, label
             g = g.set_index("method")
             means = [float(g.at[m, "mean"]) if m in g.index else math.nan for m in shown]
             bold = best_mask(means, digits)
+            tied = ties.get((protocol, source, activity, n), set())
             cells = []
             for m, mean, b in zip(shown, means, bold):
                 if not np.isfinite(mean):
                     cells.append("--")
                     continue
                 txt = f"**{mean:.{digits}f}**" if b else f"{mean:.{digits}f}"
+                if m in tied and not b:
+                    txt += TIE_TEXT
                 std = float(g.at[m, "std"])
                 if np.isfinite(std):
                     txt += f"±{std:.{digits}f}"
@@ -143,12 +194,41 @@ def readme_tables(df, paper, *, protocol="random", methods=README_METHODS, label
                     txt += f" ({float(p['mean_deg'].iloc[0]):.{digits}f})"
                 cells.append(txt)
             lines.append(f"| {activity} | {int(n)} | " + " | ".join(cells) + " |")
+        lines += ["", TIE_LEGEND]
         out[source] = "\n".join(lines)
     return out
 
 
-def update_readme(path, tables):
-    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``.
+def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
+    """Markdown table: per protocol and source, in how many (activity, N) cells PM is significantly worse than,
+    tied with or better than the cell's best method and 1-NN (:func:`.comparisons.pm_counts`), and its legend."""
+    labels = {**README_LABELS, **(labels or {})}
+    t = cmp.pm_counts(comparisons, pm=pm, nn=nn)
+    lines = [
+        f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test | worse (Wilcoxon) |",
+        "|" + "---|" * 10,
+    ]
+    for r in t.itertuples(index=False):
+        versus = "best method" if r.versus == "best" else labels.get(r.versus, r.versus)
+        best = str(r.pm_best) if r.versus == "best" else ""
+        lines.append(
+            f"| {r.protocol} | {r.source} | {versus} | {r.cells} | {r.worse} | {r.tied} | {r.better} | {best} "
+            f"| {r.untested} | {r.worse_wilcoxon} |"
+        )
+    lines += [
+        "",
+        "Paired by split, corrected resampled t-test (Nadeau and Bengio 2003), Holm-adjusted over each cell's "
+        "comparisons, significant at p < 0.05; PM best: cells where PM has the lowest mean; no test: fewer than 2 "
+        "common splits; worse (Wilcoxon): the cells where PM is worse by the Wilcoxon signed-rank test alone "
+        "(p < 0.05, no allowance for overlapping splits, no correction).",
+    ]
+    return "\n".join(lines)
+
+
+def update_readme(path, tables, counts=None):
+    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``, and
+    ``counts`` (markdown, :func:`readme_counts`) between ``<!-- results-counts -->`` and
+    ``<!-- /results-counts -->`` if the file has these markers. Returns whether the counts were written.
 
     Raises DataFileError naming ``path`` if it is missing, not UTF-8 text, lacks a source's markers, or cannot be
     written (the file is then unchanged)."""
@@ -173,11 +253,18 @@ def update_readme(path, tables):
                 f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'",
             )
         text = pat.sub(lambda m, table=table: m.group(1) + table + m.group(2), text)
+    wrote_counts = False
+    if counts is not None:
+        pat = re.compile(r"(<!-- results-counts -->\n).*?(\n<!-- /results-counts -->)", re.S)
+        if pat.search(text):
+            text = pat.sub(lambda m: m.group(1) + counts + m.group(2), text)
+            wrote_counts = True
     try:
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+    return wrote_counts
 
 
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).
@@ -199,6 +286,12 @@ def main(argv=None):
         help="the study of a src outside results/ (default: <study> of "
         "results/<study>/aggregate/results.csv)",
     )
+    c = sub.add_parser(
+        "comparisons",
+        help="the paired comparisons of a published table (reports/published/<study>-comparisons.csv)",
+    )
+    c.add_argument("table", help="reports/published/<study>.csv")
+    c.add_argument("dest", help="reports/published/<study>-comparisons.csv")
     r = sub.add_parser("readme", help="the README's results tables from a published table")
     r.add_argument("table")
     r.add_argument(
@@ -218,6 +311,10 @@ def main(argv=None):
             df = publish(args.src, args.dest, study=args.study)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
             return 0
+        if args.cmd == "comparisons":
+            out = publish_comparisons(args.table, args.dest)
+            print(f"{args.dest}: {len(out)} comparisons", file=sys.stderr)
+            return 0
         if args.update and (Path(args.table).stem != README_STUDY or args.protocol != "random"):
             # the README's tables are those of the paper protocol: another study's table would replace them
             raise InputError(
@@ -225,13 +322,22 @@ def main(argv=None):
                 f"the paper protocol's (reports/published/{README_STUDY}.csv, --protocol random); print this "
                 "table's tables without --update"
             )
+        df = read_results(args.table)
+        comp = cmp.comparisons(df[df["protocol"] == args.protocol])
         tables = readme_tables(
-            read_results(args.table), read_paper_tables(args.paper), protocol=args.protocol
+            df, read_paper_tables(args.paper), protocol=args.protocol, comparisons=comp
         )
+        counts = readme_counts(comp)
         if args.update:
-            update_readme(args.update, tables)
+            if not update_readme(args.update, tables, counts):
+                print(
+                    f"{args.update}: no markers '<!-- results-counts -->' ... '<!-- /results-counts -->'; the "
+                    "count of PM's significant differences was not written",
+                    file=sys.stderr,
+                )
         else:
             print("\n\n".join(f"**{s}**\n\n{t}" for s, t in tables.items()))
+            print("\n**PM against the best method and 1-NN**\n\n" + counts)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -88,11 +88,107 @@ def paper_pm_count(paper, pm="PM"):
     return int(ok.sum()), len(ok)
 
 
-def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
+def comparison_sentences(comp, *, labels, pm="PM", nn="NN1"):
+    """Per protocol and source, in how many (activity, $N$) cells PM is significantly worse than, tied with or
+    better than the cell's best method and 1-NN (:func:`bsrbench.reporting.comparisons.pm_counts`), as sentences
+    (LaTeX); [] without comparisons."""
+    from .comparisons import pm_counts
+
+    if comp is None or comp.empty:
+        return []
+    t = pm_counts(comp, pm=pm, nn=nn)
+    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    out = []
+    for (protocol, source), g in t.groupby(["protocol", "source"], sort=True):
+        g = g.set_index("versus")
+        parts, wilcoxon = [], []
+        for what, name in (("best", "the best method of the cell"), (nn, L(nn))):
+            if what not in g.index:
+                continue
+            r = g.loc[what]
+            text = f"than {name}: worse in {int(r['worse'])}, tied in {int(r['tied'])}, better in {int(r['better'])}"
+            if what == "best" and int(r["pm_best"]):
+                text += f", and PM is itself the best in {int(r['pm_best'])}"
+            if int(r["untested"]):
+                text += f" (no test in {int(r['untested'])}: fewer than 2 common splits)"
+            text += f" of the {int(r['cells'])} cells"
+            parts.append(text)
+            wilcoxon.append(f"than {name} in {int(r['worse_wilcoxon'])}")
+        if not parts:
+            continue
+        out.append(
+            f"{latex_escape(protocol.replace('_', '-').capitalize())} protocol, {latex_escape(source)} data, "
+            f"paired by split (corrected resampled $t$-test, Holm-adjusted over each cell's comparisons, "
+            f"significant at $p < 0.05$): {L(pm)} is significantly worse, tied or better "
+            + "; ".join(parts)
+            + ". By the Wilcoxon signed-rank test alone (no allowance for the overlap of the splits or for the "
+            f"number of comparisons) {L(pm)} is worse "
+            + " and ".join(wilcoxon)
+            + " (Table~\\ref{tab:pm-counts})."
+        )
+    return out
+
+
+def counts_latex(comp, *, labels, pm="PM", nn="NN1"):
+    """LaTeX table of :func:`bsrbench.reporting.comparisons.pm_counts` ('' without comparisons)."""
+    from .comparisons import pm_counts
+
+    if comp is None or comp.empty:
+        return ""
+    t = pm_counts(comp, pm=pm, nn=nn)
+    if t.empty:
+        return ""
+    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    rows = []
+    for r in t.itertuples(index=False):
+        versus = "best method" if r.versus == "best" else L(r.versus)
+        rows.append(
+            " & ".join(
+                [
+                    latex_escape(r.protocol.replace("_", "-")),
+                    latex_escape(r.source),
+                    versus,
+                    str(r.cells),
+                    str(r.worse),
+                    str(r.tied),
+                    str(r.better),
+                    str(r.pm_best) if r.versus == "best" else "",
+                    str(r.untested),
+                    str(r.worse_wilcoxon),
+                ]
+            )
+            + r" \\"
+        )
+    return "\n".join(
+        [
+            r"\begin{table}[H]",
+            r"\centering\footnotesize",
+            rf"\caption{{In how many (activity, $N$) cells {L(pm)} is significantly worse than, tied with or better "
+            rf"than the cell's best method and {L(nn)}: paired by split, corrected resampled $t$-test (Nadeau and "
+            r"Bengio 2003), Holm-adjusted over each cell's comparisons, $p < 0.05$. PM best: cells where PM has the "
+            r"lowest mean; no test: fewer than 2 common splits; last column: the cells where PM is worse by the "
+            r"Wilcoxon signed-rank test alone ($p < 0.05$, no allowance for overlapping splits, no correction).}",
+            r"\label{tab:pm-counts}",
+            r"\begin{tabular}{@{}lllrrrrrrr@{}}",
+            r"\toprule",
+            rf"Protocol & Source & {L(pm)} against & cells & worse & tied & better & PM best & no test & "
+            r"worse (W.) \\",
+            r"\midrule",
+            *rows,
+            r"\bottomrule",
+            r"\end{tabular}",
+            r"\end{table}",
+        ]
+    )
+
+
+def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge"), comparisons=None):
     """Plain sentences (LaTeX) saying where the paper's claims hold on these data and where they do not.
 
     Every sentence states what was compared, on which rows, and the count in words; ratios to the paper's
-    errors and coverages are given per data source (their data differ).
+    errors and coverages are given per data source (their data differ). ``comparisons``: the paired comparisons
+    (:func:`bsrbench.reporting.comparisons.comparisons`); with them the findings say in how many cells PM is
+    significantly worse than, tied with or better than the best method and 1-NN.
     """
     out = []
     s = summarize(df)
@@ -176,6 +272,9 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge")):
                     f"At $N={n}${tag}, PM has a lower mean error than {L(r)} {_for_how_many(ok)}; "
                     f"PM's mean error minus {L(r)}'s{over} is {diff:+.2f} degrees ({side})."
                 )
+    out += comparison_sentences(
+        comparisons, labels=labels, pm=pm, nn=references[0] if references else "NN1"
+    )
     # paired per split: the same split for every method, so compare seed by seed
     r = df[df["protocol"] == "random"]
     if baselines and not r.empty:
@@ -386,10 +485,12 @@ def setup_text(df, *, labels):
     ]
 
 
-def write_generated(path, df, paper, *, labels, defaults=None, study=None):
+def write_generated(path, df, paper, *, labels, defaults=None, study=None, comparisons=None):
     """The LaTeX fragment with the setup (and parameter table) and the findings (input by reports/report.tex).
 
     ``study``: (name, results folder) of the study shown, named first in the setup; None leaves it out.
+    ``comparisons``: the paired comparisons; with them the findings count PM's significant differences and a
+    table gives the counts (:func:`counts_latex`).
     """
     body = ["% generated from the study's aggregate table", r"\section{Setup}", ""]
     lines = setup_text(df, labels=labels)
@@ -404,12 +505,15 @@ def write_generated(path, df, paper, *, labels, defaults=None, study=None):
         )
     body += [" ".join(lines), ""]
     body += [parameters_table(df, labels=labels, defaults=defaults or {}), ""]
-    items = findings(df, paper, labels=labels) or [
+    items = findings(df, paper, labels=labels, comparisons=comparisons) or [
         "No sentence applies to what was run (the findings compare PM with the paper's baselines and references)."
     ]
     body += [r"\section{Findings}", r"\begin{itemize}"]
     body += [r"\item " + f for f in items]
     body += [r"\end{itemize}", ""]
+    counts = counts_latex(comparisons, labels=labels)
+    if counts and comparison_sentences(comparisons, labels=labels):
+        body += [counts, ""]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(body))
 
@@ -420,20 +524,11 @@ def tt(text):
     return r"\texttt{" + latex_escape(text).replace("-", "-{}") + "}"
 
 
-#: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
-NO_ROW = {
-    "none": "no data set of this source",
-    "here": "data here, not in this study",
-    "download": "data not on this machine",
-    "missing": "input files missing",
-}
-
-
 def missing_data_note(source, status):
     """One short LaTeX paragraph on the paper's activities that have no row for ``source``; "" if none.
 
     ``status``: {paper activity: studied activity id, or {"kind", "activity", "command", "missing"}} (the
-    workflow's data_status; kinds as in :data:`NO_ROW`). Commands are set in typewriter type, one per line
+    workflow's data_status; kinds as in :data:`.tables.NO_ROW`). Commands are set in typewriter type, one per line
     and with ASCII hyphens, so that they can be copied. A table none of whose activities is studied on the
     source is not shown (:func:`bsrbench.reporting.tables.tables_with_rows`); the note's first line says so.
     """

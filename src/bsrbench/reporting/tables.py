@@ -30,6 +30,16 @@ PAPER_TABLES = {
 #: Methods of the paper's tables (their labels), in the paper's column order.
 PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
+#: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
+NO_ROW = {
+    "none": "no data set of this source",
+    "here": "data here, not in this study",
+    "download": "data not on this machine",
+    "missing": "input files missing",
+}
+#: The mark of a mean statistically indistinguishable from the best of its row (LaTeX; the README's is TIE_TEXT).
+TIE_MARK = r"$^{\dagger}$"
+TIE_TEXT = "†"
 
 
 def tables_with_rows(status):
@@ -325,8 +335,9 @@ def latex_escape(text):
 STD_SIZE = "scriptsize"  # LaTeX size of the std in a table cell; the tables are \footnotesize
 
 
-def format_cell(mean, std, *, bold=False, digits=2):
-    """``mean $\\pm$ {\\scriptsize std}`` with the mean in bold if ``bold``; ``--`` for a missing mean.
+def format_cell(mean, std, *, bold=False, tie=False, digits=2):
+    """``mean $\\pm$ {\\scriptsize std}`` with the mean in bold if ``bold``, marked with :data:`TIE_MARK` if
+    ``tie`` (and not bold); ``--`` for a missing mean.
 
     The std is set one size below the tables' ``\\footnotesize``, so it prints smaller than the mean."""
     if mean is None or not np.isfinite(mean):
@@ -334,6 +345,8 @@ def format_cell(mean, std, *, bold=False, digits=2):
     m = f"{mean:.{digits}f}"
     if bold:
         m = rf"\textbf{{{m}}}"
+    elif tie:
+        m += TIE_MARK
     if std is None or not np.isfinite(std):
         return m
     return rf"{m} $\pm$ {{\{STD_SIZE} {std:.{digits}f}}}"
@@ -347,6 +360,21 @@ def best_mask(values, digits=2):
     if not np.isfinite(v).any():
         return [False] * len(v)
     return list(v == v.min())
+
+
+def tie_caption(ties, *, protocol, source):
+    """The caption's sentence on the marks of :func:`latex_table` for one protocol and source."""
+    if ties is None:
+        return "No paired comparisons were made, so no mean is marked as tied with the best."
+    tested = any(k[0] == protocol and k[1] == source for k in ties)
+    text = (
+        TIE_MARK
+        + ": statistically indistinguishable from the best of its row (paired by split, corrected "
+        r"resampled $t$-test of Nadeau and Bengio, Holm-adjusted over the row's comparisons, $p \geq 0.05$)."
+    )
+    if not tested:
+        text += r" No row has 2 common splits, so no row was tested and none is marked."
+    return text
 
 
 def _row(cells):
@@ -367,6 +395,7 @@ def latex_table(
     digits=2,
     skipped=None,
     frames=None,
+    ties=None,
 ):
     """LaTeX (booktabs) for one of the paper's tables on one data source, one tabular per protocol.
 
@@ -377,7 +406,7 @@ def latex_table(
     methods : method keys in column order; labels : {method: column label}.
     n_train : training sizes of the study (rows per activity).
     status : {paper activity name: studied activity id, or {"kind": why there is no row, ...}} (see
-        :data:`bsrbench.reporting.report.NO_ROW`); such rows say why and point to the note under the tables
+        :data:`NO_ROW`); such rows say why and point to the note under the tables
         (:func:`bsrbench.reporting.report.missing_data_note`); a paper activity missing from ``status`` gets
         "no data".
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
@@ -385,6 +414,10 @@ def latex_table(
     skipped : {protocol: {activity id: [note, ...]}}: training sizes not run because too few test frames
         would remain; each note starts with ``"N = <n> skipped"`` and takes that size's row.
     frames : {activity id: sentence}: how each studied activity's frames were chosen, stated under the table.
+    ties : {(protocol, source, activity, n_train): {method, ...}}: the best method of each cell and those
+        statistically indistinguishable from it (:func:`bsrbench.reporting.comparisons.tied_with_best`); their
+        means get :data:`TIE_MARK` unless bold. None: no comparisons, no marks (the caption says so); a cell
+        missing from it had no test (fewer than 2 common splits).
     """
     skipped = skipped or {}
     frames = frames or {}
@@ -403,7 +436,8 @@ def latex_table(
         sp = s[s["protocol"] == protocol]
         caption = (
             f"Table {table} on the {latex_escape(source)} data, protocol ``{latex_escape(protocol)}'': "
-            r"mean error $\pm$ std (degrees) over seeds; best of each row in bold."
+            r"mean error $\pm$ std (degrees) over seeds; best of each row in bold. "
+            + tie_caption(ties, protocol=protocol, source=source)
         )
         if protocol == "random":
             caption += " Italic rows: the paper's numbers."
@@ -428,8 +462,6 @@ def latex_table(
             name = latex_escape(paper_name)
             activity = status.get(paper_name, {"kind": "none"})
             if isinstance(activity, dict) or activity not in set(sp["activity"]):
-                from .report import NO_ROW
-
                 why = (
                     NO_ROW.get(activity.get("kind"), "no data")
                     if isinstance(activity, dict)
@@ -455,12 +487,13 @@ def latex_table(
                 ]
                 stds = [float(cell.at[m, "std"]) if m in cell.index else math.nan for m in methods]
                 bold = best_mask(means, digits)
+                tied = (ties or {}).get((protocol, source, activity, n), set())
                 out.append(
                     _row(
                         [name, str(n)]
                         + [
-                            format_cell(a, b, bold=c, digits=digits)
-                            for a, b, c in zip(means, stds, bold)
+                            format_cell(a, b, bold=c, tie=m in tied, digits=digits)
+                            for a, b, c, m in zip(means, stds, bold, methods)
                         ]
                     )
                 )
