@@ -135,12 +135,12 @@ PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
             {"params": {**PM_OK, "n_atoms": -3}},
             None,
             r"'methods\.M\.params' \(method M, bsrbench\.models\.bsr:BayesianSR\): params \{.*n_atoms: -3.*\}: "
-            r"n_atoms must be >= 1; got -3",
+            r"The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -3",
         ),
         (
             {"params": {**PM_OK, "w_update": "foo"}},
             None,
-            r"'methods\.M\.params' .*w_update must be one of \['ess', 'mh', .*\]; got 'foo'",
+            r"'methods\.M\.params' .*'w_update' parameter of BayesianSR must be a str among \['ess', 'mh', .*\]\. Got 'foo'",
         ),
         (
             {"params": {**PM_OK, "n_burn_in": 40}},

@@ -46,6 +46,13 @@ PREDICTIONS = ("conditional", "paper-text")
 LOGIT_KERNELS = kern.LOGIT_KERNELS
 
 
+class _Choices(StrOptions):
+    """StrOptions whose error message lists the choices sorted (a set's order varies between runs)."""
+
+    def __str__(self):
+        return f"a str among {sorted(self.options)}"
+
+
 def _count(low, high=None):
     return Interval(Integral, low, high, closed="left" if high is None else "both")
 
@@ -176,22 +183,22 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         "n_iter": [_count(1)],
         "n_burn_in": [_count(0)],
         "thin": [_count(1)],
-        "w_update": [StrOptions(set(kern.W_UPDATES))],
-        "atom_update": [StrOptions(set(kern.ATOM_UPDATES))],
+        "w_update": [_Choices(set(kern.W_UPDATES))],
+        "atom_update": [_Choices(set(kern.ATOM_UPDATES))],
         "n_predict_sweeps": [_count(1)],
         "n_predict_samples": [_count(1), None],
-        "prediction": [StrOptions(set(PREDICTIONS))],
-        "prediction_weighting": [StrOptions({"uniform", "likelihood"})],
+        "prediction": [_Choices(set(PREDICTIONS))],
+        "prediction_weighting": [_Choices({"uniform", "likelihood"})],
         "a0": [_positive()],
         "b0": [_positive()],
         "a_xy": [_positive(), None],
         "b_xy": [_positive(), None],
         "w_prior_mean": [Interval(Real, -np.inf, np.inf, closed="neither")],
-        "logit_kernel": [StrOptions(set(LOGIT_KERNELS))],
+        "logit_kernel": [_Choices(set(LOGIT_KERNELS))],
         "eta_scale": [_positive()],
-        "noise": [StrOptions(set(kern.NOISE_MODELS))],
+        "noise": [_Choices(set(kern.NOISE_MODELS))],
         "standardize": ["boolean"],
-        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+        "input_scaling": [_Choices(set(INPUT_SCALINGS))],
         "random_state": ["random_state"],
         "verbose": ["verbose"],
     }
