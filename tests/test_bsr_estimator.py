@@ -326,6 +326,8 @@ def _among(name, options, got):
         ({"n_atoms": 0}, _bad("n_atoms", r"an int in the range \[1, inf\)", "0")),
         ({"n_atoms": 2.5}, _bad("n_atoms", r"an int in the range \[1, inf\)", "2.5")),
         ({"thin": 0}, _bad("thin", r"an int in the range \[1, inf\)", "0")),
+        ({"n_atoms": True}, _bad("n_atoms", r"an int in the range \[1, inf\)", "True")),
+        ({"a0": True}, _bad("a0", r"a float in the range \(0.0, inf\)", "True")),
         (
             {
                 "n_iter": 30,

@@ -53,12 +53,19 @@ class _Choices(StrOptions):
         return f"a str among {sorted(self.options)}"
 
 
+class _Range(Interval):
+    """An Interval that refuses booleans (True would pass as the number 1)."""
+
+    def is_satisfied_by(self, val):
+        return not isinstance(val, (bool, np.bool_)) and super().is_satisfied_by(val)
+
+
 def _count(low, high=None):
-    return Interval(Integral, low, high, closed="left" if high is None else "both")
+    return _Range(Integral, low, high, closed="left" if high is None else "both")
 
 
 def _positive():
-    return Interval(Real, 0, np.inf, closed="neither")
+    return _Range(Real, 0, np.inf, closed="neither")
 
 
 def _validate(constraints, params, caller):
@@ -193,7 +200,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         "b0": [_positive()],
         "a_xy": [_positive(), None],
         "b_xy": [_positive(), None],
-        "w_prior_mean": [Interval(Real, -np.inf, np.inf, closed="neither")],
+        "w_prior_mean": [_Range(Real, -np.inf, np.inf, closed="neither")],
         "logit_kernel": [_Choices(set(LOGIT_KERNELS))],
         "eta_scale": [_positive()],
         "noise": [_Choices(set(kern.NOISE_MODELS))],
