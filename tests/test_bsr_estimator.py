@@ -296,8 +296,24 @@ def test_fewer_rows_than_neighbours():
     with pytest.raises(InputError, match=r"n_neighbors=5\) training rows; got n_samples = 4"):
         BayesianSR(**{**SMALL, "n_neighbors": 5}).fit(X, Y)
     m = BayesianSR(**SMALL).fit(X, Y)
-    with pytest.raises(InputError, match=r"n_neighbors must be in \[1, 4\]; got 9"):
+    with pytest.raises(
+        InputError,
+        match=r"'n_neighbors' parameter of BayesianSR.predict must be an int in the range \[1, 4\]. Got 9",
+    ):
         m.predict(X, n_neighbors=9)
+
+
+def _bad(name, what, got):
+    """scikit-learn's message for a parameter outside its constraints: parameter, allowed values, value."""
+    return rf"The '{name}' parameter of BayesianSR must be {what}. Got {got} instead"
+
+
+def _among(name, options, got):
+    """The message for a string outside its options (listed sorted)."""
+    listed = ", ".join(f"'{o}'" for o in sorted(options))
+    return (
+        rf"The '{name}' parameter of BayesianSR must be a str among \[{listed}\]. Got {got} instead"
+    )
 
 
 @pytest.mark.parametrize(
@@ -307,9 +323,11 @@ def test_fewer_rows_than_neighbours():
             {"n_burn_in": 30, "n_iter": 30},
             "n_burn_in must be smaller than n_iter=30.*got n_burn_in=30",
         ),
-        ({"n_atoms": 0}, "n_atoms must be >= 1; got 0"),
-        ({"n_atoms": 2.5}, "n_atoms must be an integer; got 2.5"),
-        ({"thin": 0}, "thin must be >= 1; got 0"),
+        ({"n_atoms": 0}, _bad("n_atoms", r"an int in the range \[1, inf\)", "0")),
+        ({"n_atoms": 2.5}, _bad("n_atoms", r"an int in the range \[1, inf\)", "2.5")),
+        ({"thin": 0}, _bad("thin", r"an int in the range \[1, inf\)", "0")),
+        ({"n_atoms": True}, _bad("n_atoms", r"an int in the range \[1, inf\)", "True")),
+        ({"a0": True}, _bad("a0", r"a float in the range \(0.0, inf\)", "True")),
         (
             {
                 "n_iter": 30,
@@ -318,27 +336,48 @@ def test_fewer_rows_than_neighbours():
             },  # before: silently kept the last sweep only
             r"thin=16 retains no sweep of the n_iter - n_burn_in = 15 after burn-in; expected thin <= 15",
         ),
-        ({"w_update": "gibbs"}, "w_update must be one of .*got 'gibbs'"),
-        ({"atom_update": "joint"}, "atom_update must be one of .*got 'joint'"),
+        ({"w_update": "gibbs"}, _among("w_update", kern.W_UPDATES, "'gibbs'")),
+        ({"atom_update": "joint"}, _among("atom_update", kern.ATOM_UPDATES, "'joint'")),
         (
             {"prediction_weighting": "max"},
-            "prediction_weighting must be 'uniform' or 'likelihood'; got 'max'",
+            _among("prediction_weighting", ["uniform", "likelihood"], "'max'"),
         ),
-        ({"a0": -1.0}, "a0 must be a positive finite number; got -1.0"),
+        ({"a0": -1.0}, _bad("a0", r"a float in the range \(0.0, inf\)", "-1.0")),
         (
             {"w_update": "paper-as-printed"},
-            "w_update must be one of .*paper-literal.*got 'paper-as-printed'",
+            _among("w_update", kern.W_UPDATES, "'paper-as-printed'"),
+        ),
+        ({"prediction": "prior"}, _among("prediction", ["conditional", "paper-text"], "'prior'")),
+        ({"a_xy": 0.0}, _bad("a_xy", r"a float in the range \(0.0, inf\) or None", "0.0")),
+        ({"b_xy": "1"}, _bad("b_xy", r"a float in the range \(0.0, inf\) or None", "'1'")),
+        (
+            {"w_prior_mean": np.inf},
+            _bad("w_prior_mean", r"a float in the range \(-inf, inf\)", "inf"),
         ),
         (
-            {"prediction": "prior"},
-            r"prediction must be one of \['conditional', 'paper-text'\]; got 'prior'",
+            {"w_prior_mean": None},
+            _bad("w_prior_mean", r"a float in the range \(-inf, inf\)", "None"),
         ),
-        ({"a_xy": 0.0}, "a_xy must be a positive finite number; got 0.0"),
-        ({"b_xy": "1"}, "b_xy must be a positive number; got '1'"),
-        ({"w_prior_mean": np.inf}, "w_prior_mean must be a finite number; got inf"),
-        ({"w_prior_mean": None}, "w_prior_mean must be a finite number; got None"),
-        ({"noise": "split"}, r"noise must be one of \['separate', 'shared'\]; got 'split'"),
-        ({"standardize": "yes"}, "standardize must be True or False; got 'yes'"),
+        ({"noise": "split"}, _among("noise", ["separate", "shared"], "'split'")),
+        ({"standardize": "yes"}, _bad("standardize", "an instance of 'bool'.*", "'yes'")),
+        ({"input_scaling": "std"}, _among("input_scaling", ["pooled", "bin", "none"], "'std'")),
+        (
+            {"logit_kernel": "poses"},
+            _among("logit_kernel", ["pose", "input", "identity"], "'poses'"),
+        ),
+        ({"eta_scale": 0.0}, _bad("eta_scale", r"a float in the range \(0.0, inf\)", "0.0")),
+        (
+            {"logit_kernel": "identity", "eta_scale": 10.0},
+            r"eta_scale=10.0 has no effect with logit_kernel='identity'.*expected eta_scale=1.0",
+        ),
+        (
+            {"n_predict_samples": 0},
+            _bad("n_predict_samples", r"an int in the range \[1, inf\) or None", "0"),
+        ),
+        (
+            {"n_predict_samples": 6},  # SMALL retains (30 - 15) // 3 = 5 samples
+            r"n_predict_samples=6 exceeds the 5 retained samples .*expected an integer in \[1, 5\] or None",
+        ),
     ],
 )
 def test_bad_parameters(params, match):

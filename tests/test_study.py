@@ -135,12 +135,12 @@ PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
             {"params": {**PM_OK, "n_atoms": -3}},
             None,
             r"'methods\.M\.params' \(method M, bsrbench\.models\.bsr:BayesianSR\): params \{.*n_atoms: -3.*\}: "
-            r"n_atoms must be >= 1; got -3",
+            r"The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -3",
         ),
         (
             {"params": {**PM_OK, "w_update": "foo"}},
             None,
-            r"'methods\.M\.params' .*w_update must be one of \['ess', 'mh', .*\]; got 'foo'",
+            r"'methods\.M\.params' .*'w_update' parameter of BayesianSR must be a str among \['ess', 'mh', .*\]\. Got 'foo'",
         ),
         (
             {"params": {**PM_OK, "n_burn_in": 40}},
@@ -173,7 +173,7 @@ PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
         (
             {"params": PM_OK, "grid": {"n_atoms": [8, -1]}},
             {"mode": "per_size", "folds": 5},
-            r"'methods\.M\.grid' .*grid point \{n_atoms: -1\}.*n_atoms must be >= 1; got -1",
+            r"'methods\.M\.grid' .*grid point \{n_atoms: -1\}.*The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -1",
         ),
         (
             {"params": PM_OK, "cv_params": {"n_iter": 10}, "grid": {"n_atoms": [8]}},

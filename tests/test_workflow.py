@@ -109,11 +109,11 @@ def test_dry_run(args):
         # parameter values, checked by each estimator's own validation (before: only when a job ran)
         (
             "methods: {PM: {params: {n_atoms: -3}}}",
-            r"'methods\.PM\.params' \(method PM, bsrbench\.models\.bsr:BayesianSR\): .*n_atoms must be >= 1; got -3",
+            r"'methods\.PM\.params' \(method PM, bsrbench\.models\.bsr:BayesianSR\): .*The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -3",
         ),
         (
             "methods: {PM: {params: {w_update: foo}}}",
-            r"'methods\.PM\.params' .*w_update must be one of .*got 'foo'",
+            r"'methods\.PM\.params' .*'w_update' parameter of BayesianSR must be a str among .*Got 'foo'",
         ),
         (
             "methods: {PM: {params: {n_neighbors: 40}}}",

@@ -1087,8 +1087,11 @@ def draw_from_prior(N, K, Mx, My, Sigma, Lw, a0, b0, rng, hyper=None):
 # ----------------------------------------------------------------------------------------------------------
 # logit prior
 # ----------------------------------------------------------------------------------------------------------
-def logit_prior_cov(Y):
-    """Sigma_w(i, j) = exp(-||y_i - y_j|| / eta), eta = 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1)) (paper, Sec. III)."""
+def logit_prior_cov(Y, eta_scale=1.0):
+    """Sigma_w(i, j) = exp(-||y_i - y_j|| / eta), eta = eta_scale * 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1)).
+
+    The paper's kernel (Sec. III) has eta_scale = 1; returns ``(Sigma, eta)``.
+    """
     Y = np.asarray(Y, dtype=float)
     N = Y.shape[0]
     sq = np.einsum("ij,ij->i", Y, Y)
@@ -1096,8 +1099,29 @@ def logit_prior_cov(Y):
     np.fill_diagonal(d2, 0.0)
     eta = d2[np.triu_indices(N, 1)].sum() * 2.0 / (N * (N - 1)) if N > 1 else 1.0
     if not eta > 0.0:
-        eta = 1.0  # all poses identical: the kernel is constant; any eta gives the same matrix
+        eta = 1.0  # all points identical: the kernel is constant; any eta gives the same matrix
+    eta *= float(eta_scale)
     return np.exp(-np.sqrt(d2) / eta), eta
+
+
+#: Logit prior covariances: the paper's kernel on the poses, the same kernel on the inputs, independent logits.
+LOGIT_KERNELS = ("pose", "input", "identity")
+
+
+def logit_prior(kernel, X, Y, eta_scale=1.0):
+    """Sigma_w of the logits for a kernel choice, and its bandwidth eta (None for the identity).
+
+    "pose": :func:`logit_prior_cov` of the (standardized) training poses Y, the paper's prior: points with
+    similar poses use similar atoms. "input": the same kernel on the (standardized) training inputs X: codes
+    tied by appearance instead. "identity": Sigma_w = I, independent logits (no pose information).
+    """
+    if kernel == "pose":
+        return logit_prior_cov(Y, eta_scale)
+    if kernel == "input":
+        return logit_prior_cov(X, eta_scale)
+    if kernel == "identity":
+        return np.eye(np.asarray(Y).shape[0]), None
+    raise ValueError(f"logit_kernel must be one of {list(LOGIT_KERNELS)}; got {kernel!r}")
 
 
 def cholesky_with_jitter(Sigma, eta=None, max_tries=8):

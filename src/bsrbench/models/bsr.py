@@ -12,18 +12,26 @@ retained posterior samples, ``D^y alpha_t`` where ``alpha_t`` is drawn given ``x
 
 import logging
 import time
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import (
+    Interval,
+    InvalidParameterError,
+    StrOptions,
+    validate_parameter_constraints,
+)
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..errors import InputError, SamplerError
+from ..metrics import mean_angle_error
 from . import _bsr_kernels as kern
 from .scaling import (
+    INPUT_SCALINGS,
     InputScaler,
     check_finite_input,
-    check_input_scaling,
     clip_to_bounds,
     output_bounds,
 )
@@ -34,36 +42,38 @@ _LOG_EVERY = 100
 _CHUNK = 1024  # test points per prediction call (bounds the (points, samples, outputs) draw array)
 
 
-def _check_int(name, value, low, high=None):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name} must be an integer; got {value!r}")
-    if value < low or (high is not None and value > high):
-        rng = f">= {low}" if high is None else f"in [{low}, {high}]"
-        raise InputError(f"{name} must be {rng}; got {value!r}")
-    return int(value)
-
-
-def _check_positive(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-        value, (int, float, np.integer, np.floating)
-    ):
-        raise InputError(f"{name} must be a positive number; got {value!r}")
-    if not (np.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be a positive finite number; got {value!r}")
-    return float(value)
-
-
-def _check_finite(name, value):
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-        value, (int, float, np.integer, np.floating)
-    ):
-        raise InputError(f"{name} must be a finite number; got {value!r}")
-    if not np.isfinite(value):
-        raise InputError(f"{name} must be a finite number; got {value!r}")
-    return float(value)
-
-
 PREDICTIONS = ("conditional", "paper-text")
+LOGIT_KERNELS = kern.LOGIT_KERNELS
+
+
+class _Choices(StrOptions):
+    """StrOptions whose error message lists the choices sorted (a set's order varies between runs)."""
+
+    def __str__(self):
+        return f"a str among {sorted(self.options)}"
+
+
+class _Range(Interval):
+    """An Interval that refuses booleans (True would pass as the number 1)."""
+
+    def is_satisfied_by(self, val):
+        return not isinstance(val, (bool, np.bool_)) and super().is_satisfied_by(val)
+
+
+def _count(low, high=None):
+    return _Range(Integral, low, high, closed="left" if high is None else "both")
+
+
+def _positive():
+    return _Range(Real, 0, np.inf, closed="neither")
+
+
+def _validate(constraints, params, caller):
+    """scikit-learn's parameter validation, its error raised as InputError (names parameter, value, choices)."""
+    try:
+        validate_parameter_constraints(constraints, params, caller_name=caller)
+    except InvalidParameterError as exc:
+        raise InputError(str(exc)) from None
 
 
 class BayesianSR(RegressorMixin, BaseEstimator):
@@ -99,6 +109,11 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         (cheaper per sweep at large K: O(N K M) against O(K^2 (N + M) + K^3)).
     n_predict_sweeps : int, default=10
         Gibbs sweeps of a test point's codes per posterior sample (from zero codes).
+    n_predict_samples : int or None, default=None
+        Number of retained posterior samples the prediction averages over: the last ``n_predict_samples``
+        retained sweeps; None: all of them (the paper). 1 predicts from a single posterior draw of the
+        dictionaries, codes and logits (those of the last sweep): a point estimate, without posterior
+        averaging. Acts at prediction time (``set_params`` on a fitted model needs no refit).
     prediction : {"conditional", "paper-text"}, default="conditional"
         How a test point's codes are drawn per posterior sample. "conditional": (b_t, s_t) given x_t and the
         averaged logits w_t of its j nearest training inputs, by ``n_predict_sweeps`` Gibbs sweeps of the block
@@ -119,6 +134,16 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     w_prior_mean : float, default=0.0
         Prior mean m of every logit, w_k ~ N(m 1, Sigma_w) (the paper: 0). A negative m makes P(on) small a priori
         (sparsity-inducing).
+    logit_kernel : {"pose", "input", "identity"}, default="pose"
+        Prior covariance Sigma_w of the logits w_k ~ N(m 1, Sigma_w) over the training points. "pose": the
+        paper's ``exp(-||y_i - y_j|| / eta)`` on the standardized training poses (points with similar poses use
+        similar atoms); "input": the same kernel on the scaled training inputs X (codes tied by appearance, not
+        pose); "identity": Sigma_w = I, independent logits (no pose information). The sampler is exact for each
+        (tests/test_bsr_mechanisms.py).
+    eta_scale : float, default=1.0
+        Factor on the paper's bandwidth ``eta = 2 sum_{i<j} ||y_i - y_j||^2 / (N (N - 1))`` of the "pose" or
+        "input" kernel: < 1 makes Sigma_w nearer the identity, > 1 nearer a constant (all logits of an atom
+        alike). Must be 1 with "identity".
     noise : {"shared", "separate"}, default="shared"
         One noise precision g_xy for the feature and output rows (the paper), or a model extension with g_nx for
         the Mx feature rows and g_ny for the My output rows, each with the (a_xy, b_xy) prior.
@@ -149,14 +174,41 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     samples_ : dict of ndarray
         Retained posterior samples: ``Dx`` (L, K, Mx), ``Dy`` (L, K, My), ``W`` (L, N, K), ``g_s``, ``g_xy``,
         ``g_nx``, ``g_ny`` (L,), in standardized units.
-    eta_ : float
-        Bandwidth of the logit prior kernel ``exp(-||y_i - y_j|| / eta)``.
+    eta_ : float or None
+        Bandwidth of the logit prior kernel ``exp(-||u_i - u_j|| / eta)`` (u: the standardized poses, or the
+        scaled inputs with ``logit_kernel="input"``), eta_scale included; None with ``logit_kernel="identity"``.
     sigma_jitter_ : float
         Jitter added to the diagonal of Sigma_w for its Cholesky factor (0 if none was needed).
     fit_seconds_ : float
     """
 
     _predict_time_params = ("n_neighbors",)
+
+    _parameter_constraints = {
+        "n_atoms": [_count(1)],
+        "n_neighbors": [_count(1)],
+        "n_iter": [_count(1)],
+        "n_burn_in": [_count(0)],
+        "thin": [_count(1)],
+        "w_update": [_Choices(set(kern.W_UPDATES))],
+        "atom_update": [_Choices(set(kern.ATOM_UPDATES))],
+        "n_predict_sweeps": [_count(1)],
+        "n_predict_samples": [_count(1), None],
+        "prediction": [_Choices(set(PREDICTIONS))],
+        "prediction_weighting": [_Choices({"uniform", "likelihood"})],
+        "a0": [_positive()],
+        "b0": [_positive()],
+        "a_xy": [_positive(), None],
+        "b_xy": [_positive(), None],
+        "w_prior_mean": [_Range(Real, -np.inf, np.inf, closed="neither")],
+        "logit_kernel": [_Choices(set(LOGIT_KERNELS))],
+        "eta_scale": [_positive()],
+        "noise": [_Choices(set(kern.NOISE_MODELS))],
+        "standardize": ["boolean"],
+        "input_scaling": [_Choices(set(INPUT_SCALINGS))],
+        "random_state": ["random_state"],
+        "verbose": ["verbose"],
+    }
 
     def __init__(
         self,
@@ -168,6 +220,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         w_update="ess",
         atom_update="block",
         n_predict_sweeps=10,
+        n_predict_samples=None,
         prediction="conditional",
         prediction_weighting="uniform",
         a0=1e-6,
@@ -175,6 +228,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         a_xy=None,
         b_xy=None,
         w_prior_mean=0.0,
+        logit_kernel="pose",
+        eta_scale=1.0,
         noise="shared",
         standardize=True,
         input_scaling="pooled",
@@ -189,6 +244,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         self.w_update = w_update
         self.atom_update = atom_update
         self.n_predict_sweeps = n_predict_sweeps
+        self.n_predict_samples = n_predict_samples
         self.prediction = prediction
         self.prediction_weighting = prediction_weighting
         self.a0 = a0
@@ -196,6 +252,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         self.a_xy = a_xy
         self.b_xy = b_xy
         self.w_prior_mean = w_prior_mean
+        self.logit_kernel = logit_kernel
+        self.eta_scale = eta_scale
         self.noise = noise
         self.standardize = standardize
         self.input_scaling = input_scaling
@@ -212,55 +270,38 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them).
 
-        Called by :meth:`fit` and, before any job runs, by the study's configuration check
-        (:func:`bsrbench.study.check_method_settings`). Raises InputError naming the parameter, its value and
-        what was expected.
+        scikit-learn's ``_parameter_constraints`` first (types, ranges, allowed strings), then the checks that
+        tie parameters together. Called by :meth:`fit` and, before any job runs, by the study's configuration
+        check (:func:`bsrbench.study.check_method_settings`). Raises InputError naming the parameter, its value
+        and what was expected.
         """
-        _check_int("n_atoms", self.n_atoms, 1)
-        _check_int("n_neighbors", self.n_neighbors, 1)
-        n_iter = _check_int("n_iter", self.n_iter, 1)
-        _check_int("n_burn_in", self.n_burn_in, 0)
-        if self.n_burn_in >= n_iter:
+        try:
+            self._validate_params()
+        except InvalidParameterError as exc:
+            raise InputError(str(exc)) from None
+        n_iter, n_burn_in, thin = self.n_iter, self.n_burn_in, self.thin
+        if n_burn_in >= n_iter:
             raise InputError(
                 f"n_burn_in must be smaller than n_iter={n_iter} (some sweeps must be retained); "
-                f"got n_burn_in={self.n_burn_in!r}"
+                f"got n_burn_in={n_burn_in!r}"
             )
-        _check_int("thin", self.thin, 1)
-        if self.thin > n_iter - self.n_burn_in:
+        if thin > n_iter - n_burn_in:
             raise InputError(
-                f"thin={self.thin!r} retains no sweep of the n_iter - n_burn_in = {n_iter - self.n_burn_in} after "
-                f"burn-in; expected thin <= {n_iter - self.n_burn_in} (every thin-th sweep after burn-in is kept)"
+                f"thin={thin!r} retains no sweep of the n_iter - n_burn_in = {n_iter - n_burn_in} after "
+                f"burn-in; expected thin <= {n_iter - n_burn_in} (every thin-th sweep after burn-in is kept)"
             )
-        _check_int("n_predict_sweeps", self.n_predict_sweeps, 1)
-        if not isinstance(self.w_update, str) or self.w_update not in kern.W_UPDATES:
+        n_keep = (n_iter - n_burn_in) // thin
+        if self.n_predict_samples is not None and self.n_predict_samples > n_keep:
             raise InputError(
-                f"w_update must be one of {sorted(kern.W_UPDATES)}; got {self.w_update!r}"
+                f"n_predict_samples={self.n_predict_samples!r} exceeds the {n_keep} retained samples "
+                f"((n_iter - n_burn_in) // thin = ({n_iter} - {n_burn_in}) // {thin}); expected an integer in "
+                f"[1, {n_keep}] or None (all)"
             )
-        if not isinstance(self.atom_update, str) or self.atom_update not in kern.ATOM_UPDATES:
+        if self.logit_kernel == "identity" and self.eta_scale != 1.0:
             raise InputError(
-                f"atom_update must be one of {sorted(kern.ATOM_UPDATES)}; got {self.atom_update!r}"
+                f"eta_scale={self.eta_scale!r} has no effect with logit_kernel='identity' (Sigma_w = I has no "
+                f"bandwidth); expected eta_scale=1.0, or logit_kernel 'pose' or 'input'"
             )
-        if self.prediction_weighting not in ("uniform", "likelihood"):
-            raise InputError(
-                f"prediction_weighting must be 'uniform' or 'likelihood'; got {self.prediction_weighting!r}"
-            )
-        if self.prediction not in PREDICTIONS:
-            raise InputError(
-                f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}"
-            )
-        _check_positive("a0", self.a0)
-        _check_positive("b0", self.b0)
-        for name in ("a_xy", "b_xy"):
-            if getattr(self, name) is not None:
-                _check_positive(name, getattr(self, name))
-        _check_finite("w_prior_mean", self.w_prior_mean)
-        if not isinstance(self.noise, str) or self.noise not in kern.NOISE_MODELS:
-            raise InputError(
-                f"noise must be one of {sorted(kern.NOISE_MODELS)}; got {self.noise!r}"
-            )
-        if not isinstance(self.standardize, (bool, np.bool_)):
-            raise InputError(f"standardize must be True or False; got {self.standardize!r}")
-        check_input_scaling(self.input_scaling)
         if n_samples is not None:
             self._check_n_samples(n_samples)
 
@@ -303,7 +344,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         Ys = (Y2 - self.y_mean_) / self.y_scale_
         V = np.ascontiguousarray(np.hstack([Xs, Ys]))
 
-        Sigma, self.eta_ = kern.logit_prior_cov(Ys)
+        Sigma, self.eta_ = kern.logit_prior(self.logit_kernel, Xs, Ys, float(self.eta_scale))
         Lw, self.sigma_jitter_ = kern.cholesky_with_jitter(Sigma, self.eta_)
         Sigma = np.ascontiguousarray(Sigma + self.sigma_jitter_ * np.eye(N))
 
@@ -434,19 +475,39 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         return kern.BSRState(D=D, norms=norms, B=B, S=S, W=W, R=R, prec=prec)
 
     # ------------------------------------------------------------------------------------------------------
-    def _predict_draws(self, X, n_neighbors):
-        """Per test point and retained sample: standardized y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g I)."""
-        if self.prediction not in PREDICTIONS:
+    def _predict_samples(self):
+        """The retained samples the prediction uses: the last ``n_predict_samples`` (all for None)."""
+        _validate(
+            {
+                k: self._parameter_constraints[k]
+                for k in ("prediction", "prediction_weighting", "n_predict_samples")
+            },
+            {
+                "prediction": self.prediction,
+                "prediction_weighting": self.prediction_weighting,
+                "n_predict_samples": self.n_predict_samples,
+            },
+            "BayesianSR",
+        )
+        L = self.samples_["g_xy"].shape[0]
+        n = L if self.n_predict_samples is None else int(self.n_predict_samples)
+        if n > L:
             raise InputError(
-                f"prediction must be one of {list(PREDICTIONS)}; got {self.prediction!r}"
+                f"n_predict_samples={n} exceeds the {L} retained samples of the fit; expected an integer in "
+                f"[1, {L}] or None (all)"
             )
+        return {k: v[L - n :] for k, v in self.samples_.items()}
+
+    def _predict_draws(self, X, n_neighbors):
+        """Per test point and used sample: standardized y draws (T, L, My) and log N(x_t; D^x alpha_t, 1/g I)."""
+        s = self._predict_samples()
         j = self.n_neighbors if n_neighbors is None else n_neighbors
         N = self.X_train_.shape[0]
-        j = _check_int("n_neighbors", j, 1, N)
+        _validate({"n_neighbors": [_count(1, N)]}, {"n_neighbors": j}, "BayesianSR.predict")
+        j = int(j)
         Xs = np.ascontiguousarray((X - self.x_mean_) / self.x_scale_)
         nbr = kern.nearest_neighbours(Xs, self.X_train_, j)
         seeds = kern.point_seeds(Xs.view(np.uint64), np.uint64(self.predict_seed_))
-        s = self.samples_
         T, L, My = X.shape[0], s["Dx"].shape[0], s["Dy"].shape[2]
         out_y = np.empty((T, L, My))
         out_ll = np.empty((T, L))
@@ -468,7 +529,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
                 out_y,
                 out_ll,
             )
-        return out_y, out_ll
+        return out_y, out_ll, s
 
     def _weights(self, out_ll):
         """Sample weights (T, L): uniform, or the paper's self-normalized beta_l (prediction_weighting)."""
@@ -476,11 +537,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
             lw = out_ll - out_ll.max(axis=1, keepdims=True)
             wts = np.exp(lw)
             return wts / wts.sum(axis=1, keepdims=True)
-        if self.prediction_weighting == "uniform":
-            return np.full(out_ll.shape, 1.0 / out_ll.shape[1])
-        raise InputError(
-            f"prediction_weighting must be 'uniform' or 'likelihood'; got {self.prediction_weighting!r}"
-        )
+        return np.full(
+            out_ll.shape, 1.0 / out_ll.shape[1]
+        )  # "uniform" (validated by _predict_samples)
 
     def predict_draws(self, X, n_neighbors=None):
         """Per-retained-sample predictions and the weights :meth:`predict` averages them with.
@@ -494,8 +553,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         Returns
         -------
         draws : ndarray of shape (n_test, n_samples, n_outputs)
-            ``D^y alpha_t`` of each retained posterior sample (``n_samples`` = ``samples_["g_xy"].size``), in the
-            units of Y (mapped back from the standardized scale); no noise added.
+            ``D^y alpha_t`` of each retained posterior sample the prediction uses (the last
+            ``n_predict_samples``; all, ``samples_["g_xy"].size``, for None), in the units of Y (mapped back from
+            the standardized scale); no noise added.
         weights : ndarray of shape (n_test, n_samples)
             Rows sum to 1: uniform, or the paper's self-normalized beta_l (``prediction_weighting``).
             ``predict(X)`` equals ``einsum("tl,tlm->tm", weights, draws)`` up to rounding.
@@ -507,7 +567,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         X = validate_data(self, X, reset=False, dtype=np.float64)
         ys, ws = [], []
         for i in range(0, max(X.shape[0], 1), _CHUNK):
-            out_y, out_ll = self._predict_draws(X[i : i + _CHUNK], n_neighbors)
+            out_y, out_ll, _ = self._predict_draws(X[i : i + _CHUNK], n_neighbors)
             ys.append(out_y * self.y_scale_ + self.y_mean_)
             ws.append(self._weights(out_ll))
         return np.concatenate(ys), np.concatenate(ws)
@@ -535,9 +595,22 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         return (y, std) if return_std else y
 
     def _predict_chunk(self, X, n_neighbors):
-        out_y, out_ll = self._predict_draws(X, n_neighbors)
+        out_y, out_ll, s = self._predict_draws(X, n_neighbors)
         wts = self._weights(out_ll)
         mean = np.einsum("tl,tlm->tm", wts, out_y)
         spread = np.einsum("tl,tlm->tm", wts, (out_y - mean[:, None, :]) ** 2)
-        noise = wts @ (1.0 / self.samples_["g_ny"])
+        noise = wts @ (1.0 / s["g_ny"])
         return mean * self.y_scale_ + self.y_mean_, np.sqrt(spread + noise[:, None]) * self.y_scale_
+
+
+def training_error(estimator, X_train, Y_train, inverse=None):
+    """The paper's error (mean over angles of the per-angle RMS, degrees) of a fitted model on its training frames.
+
+    Shown beside the test error, it tells overfitting (a small training error and a large test error) from
+    underfitting. ``X_train``, ``Y_train``: the frames the model was fitted on, ``Y_train`` in degrees;
+    ``inverse``: the map from the model's output space back to degrees (a pose transform's ``inverse``; None for
+    the identity). PM predicts a training frame as any test frame, from ``x`` alone (its nearest training input
+    is itself).
+    """
+    Z = estimator.predict(X_train)
+    return mean_angle_error(Y_train, Z if inverse is None else inverse(Z))
