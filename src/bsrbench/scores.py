@@ -1,0 +1,241 @@
+"""Proper scores of predictive distributions of joint angles, PIT values and a split-conformal reference interval.
+
+Scores (Gneiting and Raftery, JASA 2007), per angle and test frame, then averaged over frames and angles (lower
+is better; angles in degrees):
+
+* NLPD, the negative log predictive density (the log score), in nats per angle with densities per degree;
+* CRPS, the continuous ranked probability score, in degrees (from the scoringrules package).
+
+A prediction is either Gaussian (mean and std per angle, from ``predict(X, return_std=True)``) or a set of
+posterior predictive draws (PM's samples). For a Gaussian both scores are in closed form. For draws the CRPS is the
+sample estimate ``scoringrules.crps_ensemble(..., estimator="pwm")``: the probability-weighted-moment
+estimator, equal to the "fair" one and unbiased for the CRPS of the distribution the draws come from (Ferro 2014;
+Zamo and Naveau 2018), in O(S log S) per angle where the "fair" pairwise form needs O(S^2) memory), and the NLPD is that of the Gaussian with the draws' mean
+and variance (a moment match: a kernel density estimate in 57 dimensions of a few hundred draws per frame would
+be dominated by its bandwidth). A sample CRPS and a closed-form CRPS are estimates of the same quantity but not
+strictly comparable at small sample sizes (Zamo and Naveau, Math. Geosci. 2018); the moment-matched NLPD of draws
+and the NLPD of a Gaussian prediction are the same score of different (Gaussian) predictive distributions.
+
+Angles wrap: the error of a prediction is the wrapped difference ``((y - mu + 180) mod 360) - 180``, and every
+draw is first moved by a multiple of 360 degrees to within 180 degrees of the predicted mean.
+
+PIT values (probability integral transform, Gneiting, Balabdaoui and Raftery, JRSS-B 2007) are the predictive
+CDF at the observation: uniform on [0, 1] for a calibrated forecast, so their histogram shows over-confidence
+(a U shape) or under-confidence (a hump).
+
+The split-conformal interval (Vovk et al. 2005; Lei et al., JASA 2018) is the coverage reference: from absolute
+errors of a model fitted without a calibration part of the training set, predicted on that part, the radius of
+angle ``a`` is the ``ceil((n + 1) level)``-th smallest of its n calibration errors; ``mean +- radius`` then covers a
+new exchangeable frame's angle with probability at least ``level``, whatever the model.
+"""
+
+import math
+
+import numpy as np
+from scipy.stats import norm
+
+from .errors import InputError
+from .metrics import wrap_degrees
+
+#: Predictive std below this (degrees) is taken as this: the angle files' printed resolution. A model that gives
+#: a zero std for an angle constant in training would otherwise get an infinite log score for 1e-9 deg of error.
+STD_FLOOR = 1e-3
+
+
+def check_finite(a, name, what):
+    """Raise InputError naming ``what``, the array and the first non-finite entry."""
+    bad = ~np.isfinite(a)
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        where = ", ".join(f"{k} {i}" for k, i in zip(("row", "column", "index"), idx))
+        kind = "NaN" if np.isnan(a[idx]) else "infinity"
+        raise InputError(
+            f"{what}: {name} contains {kind} at {where}; expected finite values (a non-finite prediction "
+            f"cannot be scored)"
+        )
+
+
+def check_gaussian(y_true, mean, std, what="scores"):
+    """``(y_true, mean, std)`` as float arrays (n, d) after the checks; InputError naming the problem."""
+    y_true = np.asarray(y_true, dtype=float)
+    mean = np.asarray(mean, dtype=float)
+    std = np.asarray(std, dtype=float)
+    if y_true.ndim != 2 or mean.shape != y_true.shape or std.shape != y_true.shape:
+        raise InputError(
+            f"{what}: y_true, mean and std must be 2-D arrays of one shape (frames x angles); got "
+            f"{y_true.shape}, {mean.shape} and {std.shape}"
+        )
+    for name, a in (("y_true", y_true), ("mean", mean), ("std", std)):
+        check_finite(a, name, what)
+    if (std < 0).any():
+        r, c = (int(i) for i in np.argwhere(std < 0)[0])
+        raise InputError(
+            f"{what}: std is negative ({std[r, c]!r}) at row {r}, column {c}; expected std >= 0"
+        )
+    return y_true, mean, np.maximum(std, STD_FLOOR)
+
+
+def check_samples(y_true, samples, what="scores"):
+    """``(y_true (n, d), samples (n, S, d))`` after the checks; InputError naming the problem."""
+    y_true = np.asarray(y_true, dtype=float)
+    samples = np.asarray(samples, dtype=float)
+    if y_true.ndim != 2 or samples.ndim != 3 or samples.shape[::2] != y_true.shape:
+        raise InputError(
+            f"{what}: samples must have shape (frames, draws, angles) = ({y_true.shape[0]}, S, "
+            f"{y_true.shape[-1]}); got {samples.shape} for y_true {y_true.shape}"
+        )
+    if samples.shape[1] < 2:
+        raise InputError(f"{what}: samples have {samples.shape[1]} draw per frame; need at least 2")
+    check_finite(y_true, "y_true", what)
+    check_finite(samples, "samples", what)
+    return y_true, samples
+
+
+def _draws_near(samples, centre):
+    """Draws (n, S, d) moved by multiples of 360 deg to within 180 deg of ``centre`` (n, d)."""
+    return centre[:, None, :] + wrap_degrees(samples - centre[:, None, :])
+
+
+def moment_match(samples, centre):
+    """Mean and std (n, d) of draws (n, S, d) after wrapping them to within 180 deg of ``centre`` (n, d)."""
+    d = _draws_near(np.asarray(samples, float), np.asarray(centre, float))
+    return d.mean(axis=1), d.std(axis=1)
+
+
+# ------------------------------------------------------------------------------------------------ NLPD
+def gaussian_nlpd(y_true, mean, std, what="nlpd"):
+    """Mean over frames and angles of ``-log N(y; mean, std^2)`` with the wrapped error (nats; per degree)."""
+    y_true, mean, std = check_gaussian(y_true, mean, std, what)
+    r = wrap_degrees(y_true - mean)
+    per_angle = np.mean(0.5 * np.log(2 * np.pi * std * std) + 0.5 * (r / std) ** 2, axis=0)
+    return float(per_angle.mean())
+
+
+def sample_nlpd(y_true, samples, centre, what="nlpd"):
+    """NLPD of the Gaussian moment match of draws (n, S, d) wrapped around ``centre`` (n, d; the point
+    prediction)."""
+    y_true, samples = check_samples(y_true, samples, what)
+    m, s = moment_match(samples, centre)
+    return gaussian_nlpd(y_true, m, s, what)
+
+
+# ------------------------------------------------------------------------------------------------ CRPS
+def gaussian_crps(y_true, mean, std, what="crps"):
+    """Mean over frames and angles of the closed-form CRPS of ``N(mean, std^2)`` (degrees, wrapped error)."""
+    import scoringrules as sr
+
+    y_true, mean, std = check_gaussian(y_true, mean, std, what)
+    obs = mean + wrap_degrees(y_true - mean)
+    return float(np.mean(np.asarray(sr.crps_normal(obs, mean, std, backend="numpy"), dtype=float)))
+
+
+def sample_crps(y_true, samples, what="crps"):
+    """Mean over frames and angles of the unbiased (PWM) sample CRPS of draws (n, S, d) (degrees; each draw wrapped to
+    within 180 deg of the observation)."""
+    import scoringrules as sr
+
+    y_true, samples = check_samples(y_true, samples, what)
+    draws = _draws_near(samples, y_true)
+    fct = np.moveaxis(draws, 1, -1)
+    c = sr.crps_ensemble(y_true, fct, m_axis=-1, estimator="pwm", backend="numpy")
+    return float(np.mean(np.asarray(c, dtype=float)))
+
+
+# ------------------------------------------------------------------------------------------------ PIT
+def gaussian_pit(y_true, mean, std, what="pit"):
+    """PIT values (n, d): the Gaussian predictive CDF at the observation (wrapped error)."""
+    y_true, mean, std = check_gaussian(y_true, mean, std, what)
+    return norm.cdf(wrap_degrees(y_true - mean) / std)
+
+
+def sample_pit(y_true, samples, what="pit"):
+    """PIT values (n, d) from draws (n, S, d): the fraction of draws below the observation, ties counted half
+    (draws wrapped to within 180 deg of the observation)."""
+    y_true, samples = check_samples(y_true, samples, what)
+    e = wrap_degrees(samples - y_true[:, None, :])
+    return np.mean(e < 0, axis=1) + 0.5 * np.mean(e == 0, axis=1)
+
+
+# ------------------------------------------------------------------------------------------- split conformal
+def calibration_split(n, fraction=0.25, seed=0, min_calibration=5):
+    """Indices ``(fit, calibration)`` into ``range(n)`` training rows: a random ``fraction`` held out for
+    calibration (at least ``min_calibration`` rows, and at least 1 row left to fit)."""
+    n = int(n)
+    if not 0 < fraction < 1:
+        raise InputError(f"calibration fraction must be in (0, 1); got {fraction!r}")
+    n_cal = max(int(min_calibration), int(round(fraction * n)))
+    if n_cal >= n:
+        raise InputError(
+            f"cannot hold out {n_cal} calibration rows from {n} training rows; need at least {n_cal + 1}"
+        )
+    perm = np.random.default_rng(seed).permutation(n)
+    return np.sort(perm[n_cal:]), np.sort(perm[:n_cal])
+
+
+def conformal_radius(cal_true, cal_pred, level=0.9, what="conformal"):
+    """Per-angle radius (d,) of the split-conformal interval from calibration truths and predictions (m, d).
+
+    The ``ceil((m + 1) level)``-th smallest absolute wrapped error of each angle; ``inf`` when m is too small for
+    ``level`` (``ceil((m + 1) level) > m``): no finite interval then has the guarantee.
+    """
+    cal_true = np.asarray(cal_true, dtype=float)
+    cal_pred = np.asarray(cal_pred, dtype=float)
+    if cal_true.ndim != 2 or cal_true.shape != cal_pred.shape or cal_true.shape[0] < 1:
+        raise InputError(
+            f"{what}: calibration truths and predictions must be 2-D of one shape with >= 1 row; got "
+            f"{cal_true.shape} and {cal_pred.shape}"
+        )
+    if not 0 < level < 1:
+        raise InputError(f"{what}: level must be in (0, 1); got {level!r}")
+    check_finite(cal_true, "calibration truths", what)
+    check_finite(cal_pred, "calibration predictions", what)
+    m = cal_true.shape[0]
+    k = math.ceil((m + 1) * level)
+    if k > m:
+        return np.full(cal_true.shape[1], np.inf)
+    err = np.sort(np.abs(wrap_degrees(cal_true - cal_pred)), axis=0)
+    return err[k - 1]
+
+
+def interval_coverage_radius(y_true, y_pred, radius):
+    """Fraction of test angles within ``radius`` (d,) of the prediction (wrapped): the coverage of
+    ``y_pred +- radius``."""
+    y_true = np.asarray(y_true, dtype=float)
+    y_pred = np.asarray(y_pred, dtype=float)
+    radius = np.asarray(radius, dtype=float)
+    if y_true.shape != y_pred.shape or y_true.ndim != 2 or radius.shape != (y_true.shape[1],):
+        raise InputError(
+            f"y_true {y_true.shape}, y_pred {y_pred.shape} and radius {radius.shape} do not match "
+            f"(frames x angles, angles)"
+        )
+    check_finite(y_pred, "y_pred", "conformal coverage")
+    return float(np.mean(np.abs(wrap_degrees(y_true - y_pred)) <= radius))
+
+
+# ------------------------------------------------------------------------------------------------ one call
+def proper_scores(y_true, y_pred, *, std=None, samples=None, what="scores"):
+    """``{"nlpd", "crps", "scores_from"}`` of one test set: from ``samples`` (n, S, d) if given (moment-matched
+    NLPD around ``y_pred``, unbiased sample CRPS), else from the Gaussian ``(y_pred, std)``; all None (not NaN, not 0)
+    when neither is given. ``scores_from`` is ``"samples"``, ``"gaussian"`` or None."""
+    y_true = np.asarray(y_true, dtype=float)
+    y_pred = np.asarray(y_pred, dtype=float)
+    if y_true.ndim != 2 or y_pred.shape != y_true.shape:
+        raise InputError(
+            f"{what}: y_true and y_pred must be 2-D arrays of one shape; got {y_true.shape} and "
+            f"{y_pred.shape}"
+        )
+    check_finite(y_true, "y_true", what)
+    check_finite(y_pred, "y_pred", what)
+    if samples is not None:
+        return {
+            "nlpd": sample_nlpd(y_true, samples, y_pred, what),
+            "crps": sample_crps(y_true, samples, what),
+            "scores_from": "samples",
+        }
+    if std is not None:
+        return {
+            "nlpd": gaussian_nlpd(y_true, y_pred, std, what),
+            "crps": gaussian_crps(y_true, y_pred, std, what),
+            "scores_from": "gaussian",
+        }
+    return {"nlpd": None, "crps": None, "scores_from": None}
