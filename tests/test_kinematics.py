@@ -177,3 +177,34 @@ def test_wrong_length_unit_is_caught_by_the_stature_check():
             ),
             skel,
         )
+
+
+def test_features_pose_skeleton_picks_the_source_skeleton():
+    from bsrbench.mocap import load_motion
+
+    m = load_motion(DAZ_BVH, skip_frames=6)
+    feats = {
+        "Y": m.angles,
+        "angle_names": np.array(m.angle_names),
+        "pose_joints": np.array(m.pose_joints),
+        "files": np.array([str(DAZ_BVH)]),
+        "skeleton_kind": m.skeleton_kind,
+    }
+    ps = K.features_pose_skeleton(feats, "mocap/walk")
+    assert ps.mm_per_unit == 10.0 and ps.source == "mocap/walk (12_02.bvh)"
+    assert K.mpjpe(m.angles[:5], m.angles[:5], ps) == 0.0
+    hsc = K.features_pose_skeleton(
+        {"Y": np.zeros((3, 57)), "files": np.array(["x09.mat"])}, "hsc/run"
+    )
+    assert hsc.mm_per_unit == 25.4
+    with pytest.raises(
+        InputError,
+        match=r"hsc/run \(the authors' skeleton\): the features' poses Y have shape \(1, 60\)",
+    ):
+        K.features_pose_skeleton({"Y": np.zeros((3, 60))}, "hsc/run")
+    feats["angle_names"] = feats["angle_names"][:-3]
+    with pytest.raises(
+        InputError,
+        match=r"mocap/walk \(12_02.bvh\): the features' angle_names has 54 angles; the skeleton expects 57",
+    ):
+        K.features_pose_skeleton(feats, "mocap/walk")

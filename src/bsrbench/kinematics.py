@@ -306,3 +306,33 @@ def pa_mpjpe(y_true, y_pred, skeleton):
     Pt, Pp = _pair(skeleton, y_true, y_pred)
     aligned = np.stack([similarity_align(p, t) for p, t in zip(Pp, Pt)])
     return float(per_joint_position_error(Pt, aligned).mean())
+
+
+def features_pose_skeleton(features, source):
+    """The :class:`PoseSkeleton` of an activity from its features file (a dict or ``.npz`` of
+    :mod:`bsrbench.datasets`): for mocap features (they carry ``pose_joints`` and ``files``) the skeleton of the
+    first trial file (a BVH file, or for AMC trials the subject's ASF file beside it), checked against the
+    features' ``angle_names``; otherwise the authors' skeleton (hsc features). ``source`` (e.g.
+    ``"mocap/walk"``) names the skeleton in errors."""
+    keys = set(features.keys()) if hasattr(features, "keys") else set()
+    if "pose_joints" in keys and "files" in keys:
+        files = [str(f) for f in np.atleast_1d(features["files"])]
+        if not files:
+            raise InputError(f"{source}: the features name no trial file to take the skeleton from")
+        path = Path(files[0])
+        if path.suffix.lower() == ".amc":
+            path = path.with_name(path.stem.split("_")[0] + ".asf")
+        kind = str(features["skeleton_kind"]) if "skeleton_kind" in keys else None
+        ps = mocap_pose_skeleton(
+            path,
+            joint_map=[str(j) for j in np.atleast_1d(features["pose_joints"])],
+            skeleton_kind=None if kind in (None, "", "custom") else kind,
+            source=f"{source} ({path.name})",
+        )
+    else:
+        ps = hsc_pose_skeleton(source=f"{source} (the authors' skeleton)")
+    if "angle_names" in keys and "pose_joints" in keys:
+        ps.check_angle_names(np.atleast_1d(features["angle_names"]), "the features' angle_names")
+    if "Y" in keys:
+        ps.check_angles(np.asarray(features["Y"])[:1], "the features' poses Y")
+    return ps
