@@ -130,7 +130,7 @@ class GaussianProcessARD(_ScaledRegressor):
 
     Parameters
     ----------
-    max_iter : int >= 1
+    optimizer_max_iter : int >= 1
         L-BFGS-B iterations per optimizer start. With 100 length scales the optimizer's own tolerance takes
         long to meet (N = 100, acrobatics features, seed 0: 620 evaluations, 21 s CPU, test error 7.25 deg);
         30 iterations took 1.3 s for 6.98 deg, 100 took 4.4 s for 7.22 deg (the marginal likelihood gains
@@ -147,13 +147,13 @@ class GaussianProcessARD(_ScaledRegressor):
 
     def __init__(
         self,
-        max_iter=50,
+        optimizer_max_iter=50,
         n_restarts_optimizer=0,
         noise_level=0.1,
         input_scaling="pooled",
         random_state=None,
     ):
-        self.max_iter = max_iter
+        self.optimizer_max_iter = optimizer_max_iter
         self.n_restarts_optimizer = n_restarts_optimizer
         self.noise_level = noise_level
         self.input_scaling = input_scaling
@@ -161,7 +161,7 @@ class GaussianProcessARD(_ScaledRegressor):
 
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
+        _check_number("optimizer_max_iter", self.optimizer_max_iter, low=1, integer=True)
         _check_number("n_restarts_optimizer", self.n_restarts_optimizer, low=0, integer=True)
         _check_number("noise_level", self.noise_level, low=0, low_open=True)
         check_input_scaling(self.input_scaling)
@@ -173,7 +173,7 @@ class GaussianProcessARD(_ScaledRegressor):
         ) + WhiteKernel(float(self.noise_level), (1e-6, 1e1))
         return GaussianProcessRegressor(
             kernel=kernel,
-            optimizer=partial(_lbfgsb, max_iter=int(self.max_iter)),
+            optimizer=partial(_lbfgsb, max_iter=int(self.optimizer_max_iter)),
             normalize_y=True,
             n_restarts_optimizer=int(self.n_restarts_optimizer),
             random_state=check_random_state(self.random_state),
