@@ -154,3 +154,21 @@ def test_extra_scores_for_the_job_layer():
         extra_scores(y, p, source="hsc", skeleton=ps, std=sd)
     with pytest.raises(InputError, match=r"the skeleton expects 57"):
         extra_scores(y[:, :56], y[:, :56], source="hsc", skeleton=ps)
+
+
+def test_split_conformal_of_a_fitted_model_covers_new_frames():
+    from bsrbench.models.reference import RidgeRegressor
+
+    rng = np.random.default_rng(8)
+    W = rng.normal(size=(4, 3))
+    covers = []
+    for rep in range(40):
+        X = rng.normal(size=(140, 4))
+        Y = X @ W * 10 + rng.standard_t(4, size=(140, 3))
+        out = S.split_conformal(
+            RidgeRegressor(alpha=1e-3), X[:40], Y[:40], X[40:], Y[40:], seed=rep
+        )
+        assert out["conformal_radius"].shape == (3,)
+        covers.append(out["conformal_coverage"])
+    # 10 calibration rows: radius = the ceil(11 * 0.9) = 10th smallest error, coverage 10 / 11 on average
+    assert np.mean(covers) == pytest.approx(10 / 11, abs=0.03)
