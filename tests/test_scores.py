@@ -172,3 +172,40 @@ def test_split_conformal_of_a_fitted_model_covers_new_frames():
         covers.append(out["conformal_coverage"])
     # 10 calibration rows: radius = the ceil(11 * 0.9) = 10th smallest error, coverage 10 / 11 on average
     assert np.mean(covers) == pytest.approx(10 / 11, abs=0.03)
+
+
+def test_weighted_draws_by_hand():
+    y = np.array([[0.0]])
+    draws = np.array([[[-1.0], [1.0], [3.0]]])
+    w = np.array([[0.5, 0.25, 0.25]])
+    # weighted moments: mean 0.5, var 0.5*2.25 + 0.25*0.25 + 0.25*6.25 = 2.75
+    m, s = S.moment_match(draws, np.zeros((1, 1)), w)
+    assert m[0, 0] == pytest.approx(0.5) and s[0, 0] == pytest.approx(np.sqrt(2.75))
+    np.testing.assert_allclose(S.sample_pit(y, draws, w), [[0.5]])
+    # CRPS of the weighted empirical distribution: sum w|x - y| - 1/2 sum w_i w_j |x_i - x_j|
+    x, ww = draws[0, :, 0], w[0]
+    hand = np.sum(ww * np.abs(x)) - 0.5 * np.sum(
+        ww[:, None] * ww[None] * np.abs(x[:, None] - x[None])
+    )
+    assert S.sample_crps(y, draws, w) == pytest.approx(hand, rel=1e-12)
+    with pytest.raises(InputError, match=r"weights must have shape \(frames, draws\) = \(1, 3\)"):
+        S.sample_crps(y, draws, w[:, :2])
+
+
+def test_predictive_draws_of_pm_carry_its_noise():
+    from bsrbench.models.bsr import BayesianSR
+
+    rng = np.random.default_rng(9)
+    X = np.abs(rng.normal(size=(40, 6)))
+    Y = X[:, :3] @ rng.normal(size=(3, 2)) * 5 + rng.normal(size=(40, 2))
+    est = BayesianSR(n_atoms=8, n_neighbors=3, n_iter=400, n_burn_in=100, thin=1, random_state=0)
+    est.fit(X, Y)
+    Xt = np.abs(rng.normal(size=(30, 6)))
+    mean, std = est.predict(Xt, return_std=True)
+    draws, w = S.predictive_draws(est, Xt, seed=1)
+    assert draws.shape == (30, 300, 2) and w.shape == (30, 300)
+    m, s = S.moment_match(draws, mean, w)
+    # one noise draw per sample: the draws' spread is predict's std (samples' spread + noise) up to MC error
+    assert np.median(s / std) == pytest.approx(1.0, abs=0.05)
+    noise_free, _ = est.predict_draws(Xt)
+    assert np.median(np.std(noise_free, axis=1) / std) < 0.9

@@ -65,7 +65,9 @@ def interval_coverage(y_true, y_mean, y_std, level=0.9):
     return float(np.mean(np.abs(wrap_degrees(y_true - y_mean)) <= z * y_std))
 
 
-def extra_scores(y_true_angles, y_pred_angles, *, source, skeleton, std=None, samples=None):
+def extra_scores(
+    y_true_angles, y_pred_angles, *, source, skeleton, std=None, samples=None, weights=None
+):
     """Joint-position errors and proper scores of one test set, for its result row.
 
     ``y_true_angles``, ``y_pred_angles`` (n, 57): true and predicted pose angles (degrees, the original pose
@@ -73,7 +75,9 @@ def extra_scores(y_true_angles, y_pred_angles, *, source, skeleton, std=None, sa
     :class:`bsrbench.kinematics.PoseSkeleton` (:func:`bsrbench.kinematics.hsc_pose_skeleton`, or
     :func:`bsrbench.kinematics.mocap_pose_skeleton` of the activity's first trial file); ``std`` (n, 57): the
     predictive std in the same space, if the method gives one; ``samples`` (n, S, 57): posterior predictive draws
-    in the same space, if it gives them (they take precedence over ``std``; see :mod:`bsrbench.scores`).
+    of an observed angle in the same space, noise included (:func:`bsrbench.scores.predictive_draws`), if it
+    gives them, with their ``weights`` (n, S) (None: equal); draws take precedence over ``std`` (see
+    :mod:`bsrbench.scores`).
 
     Returns ``{"mpjpe_mm", "pa_mpjpe_mm", "nlpd", "crps", "scores_from"}``: NLPD, CRPS and ``scores_from``
     (``"gaussian"`` or ``"samples"``) are None for a method with neither ``std`` nor ``samples``. Non-finite
@@ -93,5 +97,7 @@ def extra_scores(y_true_angles, y_pred_angles, *, source, skeleton, std=None, sa
         "mpjpe_mm": kinematics.mpjpe(y_true, y_pred, skeleton),
         "pa_mpjpe_mm": kinematics.pa_mpjpe(y_true, y_pred, skeleton),
     }
-    out.update(scores.proper_scores(y_true, y_pred, std=std, samples=samples, what=what))
+    out.update(
+        scores.proper_scores(y_true, y_pred, std=std, samples=samples, weights=weights, what=what)
+    )
     return out

@@ -75,6 +75,22 @@ def check_gaussian(y_true, mean, std, what="scores"):
     return y_true, mean, np.maximum(std, STD_FLOOR)
 
 
+def check_weights(weights, samples, what="scores"):
+    """Draw weights (n, S), non-negative, rows normalized to 1; None stays None (equal weights)."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=float)
+    if w.shape != samples.shape[:2]:
+        raise InputError(
+            f"{what}: weights must have shape (frames, draws) = {samples.shape[:2]}; got {w.shape}"
+        )
+    check_finite(w, "weights", what)
+    total = w.sum(axis=1, keepdims=True)
+    if (w < 0).any() or not (total > 0).all():
+        raise InputError(f"{what}: weights must be >= 0 with a positive sum per frame")
+    return w / total
+
+
 def check_samples(y_true, samples, what="scores"):
     """``(y_true (n, d), samples (n, S, d))`` after the checks; InputError naming the problem."""
     y_true = np.asarray(y_true, dtype=float)
@@ -96,10 +112,38 @@ def _draws_near(samples, centre):
     return centre[:, None, :] + wrap_degrees(samples - centre[:, None, :])
 
 
-def moment_match(samples, centre):
-    """Mean and std (n, d) of draws (n, S, d) after wrapping them to within 180 deg of ``centre`` (n, d)."""
+def moment_match(samples, centre, weights=None):
+    """Mean and std (n, d) of draws (n, S, d), weighted by ``weights`` (n, S) if given, after wrapping them to
+    within 180 deg of ``centre`` (n, d)."""
     d = _draws_near(np.asarray(samples, float), np.asarray(centre, float))
-    return d.mean(axis=1), d.std(axis=1)
+    if weights is None:
+        return d.mean(axis=1), d.std(axis=1)
+    w = np.asarray(weights, dtype=float)[:, :, None]
+    m = np.sum(w * d, axis=1)
+    return m, np.sqrt(np.sum(w * (d - m[:, None, :]) ** 2, axis=1))
+
+
+def predictive_draws(estimator, X, seed=0):
+    """Posterior predictive draws ``(draws (n, S, outputs), weights (n, S))`` of an estimator with
+    ``predict_draws(X)`` (e.g. :class:`bsrbench.models.bsr.BayesianSR`), in the units of its fitted Y: each
+    retained sample's noise-free prediction plus one Gaussian noise draw of that sample's noise variance.
+
+    For BayesianSR the noise variance of sample t is ``1 / g_ny[t]`` on the standardized outputs (``g_ny``: the
+    output rows' noise precision, equal to g_xy unless ``noise="separate"``), times ``y_scale_**2`` per output:
+    the same noise that its ``predict(X, return_std=True)`` adds to the spread of the samples. ``seed`` seeds the
+    noise (``numpy.random.default_rng``).
+    """
+    draws, weights = estimator.predict_draws(X)
+    draws = np.asarray(draws, dtype=float)
+    g = np.asarray(estimator.samples_["g_ny"], dtype=float).ravel()
+    if g.size != draws.shape[1]:
+        raise InputError(
+            f"{type(estimator).__name__}: {g.size} noise precisions for {draws.shape[1]} draws per frame"
+        )
+    scale = np.asarray(getattr(estimator, "y_scale_", 1.0), dtype=float)
+    sd = np.sqrt(1.0 / g)[None, :, None] * np.broadcast_to(scale, (draws.shape[2],))[None, None, :]
+    rng = np.random.default_rng(seed)
+    return draws + sd * rng.standard_normal(draws.shape), np.asarray(weights, dtype=float)
 
 
 # ------------------------------------------------------------------------------------------------ NLPD
@@ -111,11 +155,11 @@ def gaussian_nlpd(y_true, mean, std, what="nlpd"):
     return float(per_angle.mean())
 
 
-def sample_nlpd(y_true, samples, centre, what="nlpd"):
-    """NLPD of the Gaussian moment match of draws (n, S, d) wrapped around ``centre`` (n, d; the point
-    prediction)."""
+def sample_nlpd(y_true, samples, centre, weights=None, what="nlpd"):
+    """NLPD of the Gaussian moment match of draws (n, S, d) (weighted by ``weights`` (n, S) if given) wrapped
+    around ``centre`` (n, d; the point prediction)."""
     y_true, samples = check_samples(y_true, samples, what)
-    m, s = moment_match(samples, centre)
+    m, s = moment_match(samples, centre, check_weights(weights, samples, what))
     return gaussian_nlpd(y_true, m, s, what)
 
 
@@ -129,15 +173,21 @@ def gaussian_crps(y_true, mean, std, what="crps"):
     return float(np.mean(np.asarray(sr.crps_normal(obs, mean, std, backend="numpy"), dtype=float)))
 
 
-def sample_crps(y_true, samples, what="crps"):
-    """Mean over frames and angles of the unbiased (PWM) sample CRPS of draws (n, S, d) (degrees; each draw wrapped to
-    within 180 deg of the observation)."""
+def sample_crps(y_true, samples, weights=None, what="crps"):
+    """Mean over frames and angles of the sample CRPS of draws (n, S, d) (degrees; each draw wrapped to within
+    180 deg of the observation): the unbiased PWM estimator for equally weighted draws; with ``weights``
+    (n, S) the CRPS of the weighted empirical distribution (scoringrules' "int" estimator, ``ens_w``), which
+    exceeds the unbiased one by about ``E|X - X'| / (2 S)``."""
     import scoringrules as sr
 
     y_true, samples = check_samples(y_true, samples, what)
-    draws = _draws_near(samples, y_true)
-    fct = np.moveaxis(draws, 1, -1)
-    c = sr.crps_ensemble(y_true, fct, m_axis=-1, estimator="pwm", backend="numpy")
+    weights = check_weights(weights, samples, what)
+    fct = np.moveaxis(_draws_near(samples, y_true), 1, -1)
+    if weights is None:
+        c = sr.crps_ensemble(y_true, fct, m_axis=-1, estimator="pwm", backend="numpy")
+    else:
+        w = np.broadcast_to(weights[:, None, :], fct.shape)
+        c = sr.crps_ensemble(y_true, fct, m_axis=-1, ens_w=w, estimator="int", backend="numpy")
     return float(np.mean(np.asarray(c, dtype=float)))
 
 
@@ -148,12 +198,16 @@ def gaussian_pit(y_true, mean, std, what="pit"):
     return norm.cdf(wrap_degrees(y_true - mean) / std)
 
 
-def sample_pit(y_true, samples, what="pit"):
-    """PIT values (n, d) from draws (n, S, d): the fraction of draws below the observation, ties counted half
-    (draws wrapped to within 180 deg of the observation)."""
+def sample_pit(y_true, samples, weights=None, what="pit"):
+    """PIT values (n, d) from draws (n, S, d): the (weighted) fraction of draws below the observation, ties
+    counted half (draws wrapped to within 180 deg of the observation)."""
     y_true, samples = check_samples(y_true, samples, what)
+    weights = check_weights(weights, samples, what)
     e = wrap_degrees(samples - y_true[:, None, :])
-    return np.mean(e < 0, axis=1) + 0.5 * np.mean(e == 0, axis=1)
+    if weights is None:
+        return np.mean(e < 0, axis=1) + 0.5 * np.mean(e == 0, axis=1)
+    w = weights[:, :, None]
+    return np.sum(w * (e < 0), axis=1) + 0.5 * np.sum(w * (e == 0), axis=1)
 
 
 # ------------------------------------------------------------------------------------------- split conformal
@@ -239,10 +293,15 @@ def split_conformal(
 
 
 # ------------------------------------------------------------------------------------------------ one call
-def proper_scores(y_true, y_pred, *, std=None, samples=None, what="scores"):
+def proper_scores(y_true, y_pred, *, std=None, samples=None, weights=None, what="scores"):
     """``{"nlpd", "crps", "scores_from"}`` of one test set: from ``samples`` (n, S, d) if given (moment-matched
     NLPD around ``y_pred``, unbiased sample CRPS), else from the Gaussian ``(y_pred, std)``; all None (not NaN, not 0)
-    when neither is given. ``scores_from`` is ``"samples"``, ``"gaussian"`` or None."""
+    when neither is given. ``weights`` (n, S): the draws' weights (None: equal). ``scores_from`` is
+    ``"samples"``, ``"gaussian"`` or None.
+
+    The draws must be of the posterior predictive distribution of an observed angle, i.e. include the
+    observation noise (:func:`predictive_draws`), as the Gaussian std of ``predict(X, return_std=True)`` does;
+    draws of the noise-free mean would be scored as over-confident."""
     y_true = np.asarray(y_true, dtype=float)
     y_pred = np.asarray(y_pred, dtype=float)
     if y_true.ndim != 2 or y_pred.shape != y_true.shape:
@@ -254,8 +313,8 @@ def proper_scores(y_true, y_pred, *, std=None, samples=None, what="scores"):
     check_finite(y_pred, "y_pred", what)
     if samples is not None:
         return {
-            "nlpd": sample_nlpd(y_true, samples, y_pred, what),
-            "crps": sample_crps(y_true, samples, what),
+            "nlpd": sample_nlpd(y_true, samples, y_pred, weights, what),
+            "crps": sample_crps(y_true, samples, weights, what),
             "scores_from": "samples",
         }
     if std is not None:
