@@ -7,14 +7,16 @@ is better; angles in degrees):
 * CRPS, the continuous ranked probability score, in degrees (from the scoringrules package).
 
 A prediction is either Gaussian (mean and std per angle, from ``predict(X, return_std=True)``) or a set of
-posterior predictive draws (PM's samples). For a Gaussian both scores are in closed form. For draws the CRPS is the
-sample estimate ``scoringrules.crps_ensemble(..., estimator="pwm")``: the probability-weighted-moment
-estimator, equal to the "fair" one and unbiased for the CRPS of the distribution the draws come from (Ferro 2014;
-Zamo and Naveau 2018), in O(S log S) per angle where the "fair" pairwise form needs O(S^2) memory), and the NLPD is that of the Gaussian with the draws' mean
-and variance (a moment match: a kernel density estimate in 57 dimensions of a few hundred draws per frame would
-be dominated by its bandwidth). A sample CRPS and a closed-form CRPS are estimates of the same quantity but not
-strictly comparable at small sample sizes (Zamo and Naveau, Math. Geosci. 2018); the moment-matched NLPD of draws
-and the NLPD of a Gaussian prediction are the same score of different (Gaussian) predictive distributions.
+posterior predictive draws of the observed angle, noise included (PM's retained samples plus their noise,
+:func:`predictive_draws`), optionally weighted. For a Gaussian both scores are in closed form. For draws the CRPS
+is the sample estimate of ``scoringrules.crps_ensemble``: for equal weights the probability-weighted-moment
+estimator ("pwm"), equal to the "fair" one and unbiased for the CRPS of the distribution the draws come from
+(Ferro 2014; Zamo and Naveau 2018), in O(S log S) per angle where the pairwise "fair" form needs O(S^2) memory;
+for weighted draws the CRPS of their weighted empirical distribution ("int"). The NLPD of draws is that of the
+Gaussian with their (weighted) mean and variance, a moment match: up to Monte Carlo error the Gaussian whose std
+PM's ``predict(X, return_std=True)`` reports (a kernel density estimate per angle would add a bandwidth to
+choose). A sample CRPS and a closed-form CRPS estimate the same quantity but are not strictly comparable at small
+sample sizes (Zamo and Naveau, Math. Geosci. 2018).
 
 Angles wrap: the error of a prediction is the wrapped difference ``((y - mu + 180) mod 360) - 180``, and every
 draw is first moved by a multiple of 360 degrees to within 180 degrees of the predicted mean.
