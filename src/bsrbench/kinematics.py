@@ -21,8 +21,9 @@ The positions scored are those of the 19 pose joints (the root included, at the 
 
 Lengths are converted to mm with the skeleton's unit (:data:`MM_PER_UNIT`): the Daz-friendly CMU BVH release is
 in cm, the 3dsMax-friendly release and the CMU ASF files in the ASF unit of ``length 0.45`` (1/0.45 inch), and
-the authors' Poser skeleton in inches. The stature (root-centred vertical extent of the zero pose, plus the head)
-of each must then lie in :data:`STATURE_RANGE_MM`, else the unit is wrong and :class:`PoseSkeleton` raises.
+the authors' Poser skeleton in inches. The vertical extent of all joints in the zero pose (feet to the highest
+joint of the head; 1527 mm for the Daz skeleton, 1370 mm for subject 131's 3dsMax skeleton, 1627 mm for the
+authors') must then lie in :data:`STATURE_RANGE_MM`, else the unit is wrong and the skeleton is refused.
 """
 
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ MM_PER_UNIT = {
     "asf": 25.4 / 0.45,
     "hsc": 25.4,
 }
-#: A skeleton's root-to-head-top height in mm must fall in this range for its unit to be believed.
+#: The zero pose's vertical extent in mm must fall in this range for the skeleton's unit to be believed.
 STATURE_RANGE_MM = (1200.0, 2200.0)
 
 
