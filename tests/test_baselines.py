@@ -316,3 +316,115 @@ def test_predict_time_overrides_are_validated():
         match=r"The 'alpha' parameter of SR must be a float in the range \(0.0, inf\)\. Got -1 instead",
     ):
         SR().fit(np.abs(X), Y).predict(np.abs(X), alpha=-1)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# today's baselines (bsrbench.models.sklearn_baselines; weighted k-NN is NearestNeighbourRegressor)
+
+from bsrbench.models.sklearn_baselines import (  # noqa: E402
+    MLP,
+    GaussianProcessARD,
+    KernelRidgeRBF,
+    RandomForest,
+)
+
+TODAY_CHECK_INSTANCES = [
+    KernelRidgeRBF(),
+    GaussianProcessARD(),
+    RandomForest(n_estimators=5),
+    MLP(max_iter=50),
+]
+
+
+@parametrize_with_checks(TODAY_CHECK_INSTANCES)
+def test_sklearn_conventions_todays_baselines(estimator, check):
+    check(estimator)
+
+
+def _curve(rng, n, noise=0.05):
+    X = rng.uniform(-2, 2, size=(n, 2))
+    Y = np.column_stack([np.sin(2 * X[:, 0]), np.cos(X[:, 0]) * 10 + 50])
+    return X, Y + noise * rng.normal(size=Y.shape)
+
+
+@pytest.mark.parametrize(
+    "make, tol",
+    [
+        (lambda: KernelRidgeRBF(alpha=1e-3, gamma_scale=1.0), 0.05),
+        (lambda: GaussianProcessARD(random_state=0), 0.05),
+        (lambda: RandomForest(n_estimators=100, random_state=0), 0.3),
+        (lambda: MLP(hidden_units=64, alpha=1e-4, max_iter=3000, random_state=0), 0.3),
+    ],
+)
+def test_todays_baselines_fit_a_smooth_curve(make, tol):
+    rng = np.random.default_rng(20)
+    X, Y = _curve(rng, 200)
+    Xt, Yt = _curve(rng, 100, noise=0.0)
+    P = make().fit(X, Y).predict(Xt)
+    # RMS error per output relative to the output's spread (sin: 0.7, 10 cos: 2.5 around 50)
+    rel = np.sqrt(np.mean((P - Yt) ** 2, axis=0)) / Yt.std(axis=0)
+    assert np.all(rel < tol), rel
+
+
+def test_gp_std_is_the_gaussian_posterior_of_its_fitted_kernel_and_ard_finds_the_relevant_input():
+    rng = np.random.default_rng(21)
+    X = rng.uniform(-2, 2, size=(60, 3))
+    Y = np.column_stack([np.sin(2 * X[:, 0]), 3 * np.sin(2 * X[:, 0])]) + 0.1 * rng.normal(
+        size=(60, 2)
+    )
+    gp = GaussianProcessARD(random_state=0).fit(X, Y)
+    Xt = rng.uniform(-2, 2, size=(5, 3))
+    mean, std = gp.predict(Xt, return_std=True)
+    # independent computation: c exp(-0.5 sum ((x - x') / l)^2) + noise on the scaled inputs, normalized outputs
+    k = gp.model_.kernel_
+    c, ls, noise = k.k1.k1.constant_value, k.k1.k2.length_scale, k.k2.noise_level
+    A, B = gp.scaler_.transform(X) / ls, gp.scaler_.transform(Xt) / ls
+    K_ = c * np.exp(-0.5 * ((A[:, None] - A[None]) ** 2).sum(-1)) + noise * np.eye(60)
+    Ks = c * np.exp(-0.5 * ((B[:, None] - A[None]) ** 2).sum(-1))
+    mu_y, sd_y = Y.mean(axis=0), Y.std(axis=0)
+    alpha = np.linalg.solve(K_, (Y - mu_y) / sd_y)
+    var = c + noise - np.einsum("ij,ji->i", Ks, np.linalg.solve(K_, Ks.T))
+    np.testing.assert_allclose(mean, Ks @ alpha * sd_y + mu_y, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(std, np.sqrt(var)[:, None] * sd_y, rtol=1e-5)
+    assert ls[0] < ls[1] / 5 and ls[0] < ls[2] / 5  # the irrelevant inputs get long length scales
+    # calibrated on fresh noisy data: about 90% inside the central 90% interval
+    Xn = rng.uniform(-2, 2, size=(400, 3))
+    Yn = np.column_stack([np.sin(2 * Xn[:, 0]), 3 * np.sin(2 * Xn[:, 0])]) + 0.1 * rng.normal(
+        size=(400, 2)
+    )
+    m, s = gp.predict(Xn, return_std=True)
+    assert 0.8 < np.mean(np.abs(Yn - m) <= 1.645 * s) < 0.97
+
+
+TODAY = [
+    KernelRidgeRBF,
+    GaussianProcessARD,
+    lambda: RandomForest(n_estimators=5),
+    lambda: MLP(max_iter=20, validation_fraction=0.2),
+]
+
+
+@pytest.mark.parametrize("make", TODAY)
+def test_todays_baselines_reject_row_mismatch_and_nan(make):
+    test_row_mismatch_and_nan_are_rejected(make)
+
+
+@pytest.mark.parametrize(
+    "est, match",
+    [
+        (KernelRidgeRBF(alpha=0.0), r"alpha must be .* \(0, inf\]; got 0.0"),
+        (KernelRidgeRBF(gamma_scale=-1), r"gamma_scale must be .*; got -1"),
+        (KernelRidgeRBF(input_scaling="std"), r"input_scaling must be one of .*; got 'std'"),
+        (GaussianProcessARD(n_restarts_optimizer=-1), r"n_restarts_optimizer must be .*; got -1"),
+        (RandomForest(max_features=2.0), r"max_features must be .* \(0, 1\]; got 2.0"),
+        (RandomForest(min_samples_leaf=0), r"min_samples_leaf must be an integer .*; got 0"),
+        (MLP(hidden_units=0), r"hidden_units must be an integer .*; got 0"),
+        (MLP(validation_fraction=1.0), r"validation_fraction must be in \(0, 1\); got 1.0"),
+        (
+            MLP(validation_fraction=0.1),
+            r"validation_fraction=0.1 of n_samples = 12 leaves fewer than 2",
+        ),
+    ],
+)
+def test_todays_baselines_name_bad_parameters(est, match):
+    test_bad_parameters_name_parameter_and_value(est, match)
