@@ -31,7 +31,8 @@ from threadpoolctl import threadpool_limits
 
 from bsrbench.datasets import load_feature_mat
 from bsrbench.io import atomic_path
-from bsrbench.study import JobSpec, run_job
+from bsrbench.runs import run_job
+from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 FEATURES = ROOT / "resources" / "paper-features"

@@ -25,11 +25,12 @@ from contiguous_offrange import ACTIVITIES, load
 from sklearn.model_selection import KFold
 from threadpoolctl import threadpool_limits
 
+from bsrbench.estimators import make_estimator
 from bsrbench.io import atomic_path
 from bsrbench.metrics import mean_angle_error
 from bsrbench.models import scaling
 from bsrbench.poses import HeadingTransform
-from bsrbench.study import JobSpec, make_estimator
+from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 SCALINGS = ("pooled", "bin", "none", "bin-nofloor")

@@ -34,7 +34,7 @@ from bsrbench.models import (
     scaling,
 )
 from bsrbench.poses import HeadingTransform
-from bsrbench.study import make_split
+from bsrbench.splits import make_split
 
 ROOT = Path(__file__).resolve().parents[1]
 MAT = ROOT / "resources" / "paper-features" / "x4921.mat"

@@ -10,19 +10,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bsrbench.convergence import convergence_summary
 from bsrbench.errors import InputError
+from bsrbench.io import load_features
 from bsrbench.models.bsr import BayesianSR
 from bsrbench.poses import get_pose_transform
 from bsrbench.reporting import convergence as conv
-from bsrbench.study import (
-    JobSpec,
-    chain_seed,
-    convergence_summary,
-    load_features,
-    pool_chains,
-    run_chain,
-    run_job,
-)
+from bsrbench.runs import chain_seed, pool_chains, run_chain, run_job
+from bsrbench.splits import JobSpec
 
 BSR = "bsrbench.models.bsr:BayesianSR"
 PARAMS = {"n_atoms": 8, "n_neighbors": 3, "n_iter": 40, "n_burn_in": 20, "thin": 2}
@@ -74,7 +69,7 @@ def test_pooled_prediction_is_the_mixture_of_the_chains(chains):
     # independent form of the mixture variance: mean within-chain variance + variance of the chain means
     var = np.mean([c["z_var"] for c in cs], axis=0) + means.var(axis=0)
     np.testing.assert_allclose(arrays["y_pred"], transform.inverse(means.mean(axis=0)), rtol=1e-12)
-    from bsrbench.study import inverse_std
+    from bsrbench.runs import inverse_std
 
     np.testing.assert_allclose(
         arrays["y_std"], inverse_std(transform, means.mean(axis=0), np.sqrt(var)), rtol=1e-9

@@ -5,24 +5,18 @@ import json
 import numpy as np
 import pytest
 
+from bsrbench.config import check_method_settings
 from bsrbench.errors import DataFileError, InputError
-from bsrbench.poses import HeadingTransform
-from bsrbench.study import (
-    JobSpec,
-    check_method_settings,
-    cross_validate,
+from bsrbench.estimators import (
     default_grid,
     estimator_defaults,
-    inverse_std,
     load_estimator_class,
-    load_features,
     make_estimator,
-    make_split,
-    max_n_train,
-    run_job,
-    write_arrays,
-    write_json,
 )
+from bsrbench.io import load_features, write_arrays, write_json
+from bsrbench.poses import HeadingTransform
+from bsrbench.runs import cross_validate, inverse_std, run_job
+from bsrbench.splits import JobSpec, make_split, max_n_train
 
 REF = "bsrbench.models.reference"
 
@@ -326,7 +320,7 @@ def test_load_features_checks_the_file(tmp_path):
         load_features(bad)
     nan = tmp_path / "nan.npz"
     np.savez(nan, X=np.array([[1.0, np.nan]]), Y=np.ones((1, 2)))
-    with pytest.raises(DataFileError, match="non-finite value in row 0"):
+    with pytest.raises(DataFileError, match=r"non-finite value\(s\), first at row 0"):
         load_features(nan)
     # a truncated file (an interrupted copy): numpy raises zipfile.BadZipFile, which used to reach the job's log
     good = _synthetic_features(tmp_path)

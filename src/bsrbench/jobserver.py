@@ -55,7 +55,7 @@ PRELOAD = (
     "numpy",
     "scipy.stats",
     "sklearn.base",
-    "bsrbench.study",
+    "bsrbench.runs",
     "bsrbench.tuning",
     "bsrbench.models.bsr",
     "bsrbench.models.reference",

@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from ..convergence import CONVERGENCE_SERIES
 from ..io import atomic_path
-from ..study import CONVERGENCE_SERIES
 from .tables import activity_label, best_mask, format_cell, latex_escape, paper_key, summarize
 
 #: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.

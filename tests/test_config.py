@@ -1,5 +1,5 @@
 """`snakemake --config key=value`: list and mapping values read as YAML, like the configuration files, for every
-list key of both configuration schemas (bsrbench.cli_config)."""
+list key of both configuration schemas; the cross-checks of bsrbench.config, without Snakemake."""
 
 from pathlib import Path
 
@@ -8,7 +8,7 @@ import yaml
 from snakemake.cli import parse_config
 from snakemake.utils import update_config
 
-from bsrbench.cli_config import load_schema, retype_cli_config, retype_yaml_numbers
+from bsrbench.config import load_schema, retype_cli_config, retype_yaml_numbers
 from bsrbench.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
