@@ -116,6 +116,30 @@ def test_rhat_separates_stuck_chains_from_mixed_ones():
     assert convergence_summary(mixed)["ess_bulk_log_likelihood"] > 1000
 
 
+def test_tail_ess_and_mcse_of_independent_draws():
+    """4 chains of 2000 independent N(0, 1) draws: the tail ESS is about the 8000 draws and the MCSE of the mean
+    about sd / sqrt(8000); AR(1) chains with rho = 0.8 have about (1 - rho) / (1 + rho) of that ESS, so their
+    MCSE is about sd / sqrt(8000 / 9)."""
+    rng = np.random.default_rng(1)
+    iid = rng.normal(size=(4, 2000))
+    out = convergence_summary([{"trace_g_s": a, "n_burn_in": 0} for a in iid])
+    assert out["ess_tail_g_s"] == pytest.approx(8000, rel=0.15)
+    assert out["mcse_g_s"] == pytest.approx(iid.std() / np.sqrt(8000), rel=0.1)
+    rho = 0.8
+    ar = np.empty((4, 20000))
+    ar[:, 0] = rng.standard_normal(4)
+    for t in range(1, ar.shape[1]):
+        ar[:, t] = rho * ar[:, t - 1] + np.sqrt(1 - rho**2) * rng.standard_normal(4)
+    out = convergence_summary([{"trace_g_s": a, "n_burn_in": 0} for a in ar])
+    n_eff = ar.size * (1 - rho) / (1 + rho)
+    assert out["mcse_g_s"] == pytest.approx(ar.std() / np.sqrt(n_eff), rel=0.15)
+    assert set(out) == {
+        f"{stat}_{name}"
+        for stat in ("r_hat", "ess_bulk", "ess_tail", "mcse")
+        for name in ("log_likelihood", "g_xy", "g_s", "g_nx", "g_ny", "test_error")
+    }
+
+
 def test_a_stale_chain_of_another_split_is_rejected(chains):
     spec, feats, cs = chains
     other = JobSpec("syn", "act", "PM", 40, 1, min_test=50)

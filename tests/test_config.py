@@ -162,3 +162,320 @@ def test_true_false_strings_read_as_booleans_where_the_schema_wants_one():
     config = {"job_server": "True"}
     retype_yaml_numbers(config, load_schema(*SCHEMAS))
     assert config["job_server"] is True
+
+
+# ------------------------------------------------------------------ the study: checks without Snakemake
+def _merged(**overrides):
+    """config/datasets.yaml and config/config.yaml merged as the Snakefile's configfile lines do, then
+    ``overrides`` (dotted keys) as --configfile would merge them."""
+    config = {}
+    for name in ("datasets.yaml", "config.yaml"):
+        update_config(config, yaml.safe_load((ROOT / "config" / name).read_text()))
+    for key, value in overrides.items():
+        node = config
+        *parents, last = key.split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[last] = value
+    return config
+
+
+def _study(**overrides):
+    from bsrbench.config import load_datasets, load_study
+
+    return load_study(load_datasets(_merged(**overrides)), cwd="/here")
+
+
+def test_quick_study_design_cells_and_skipped_cells():
+    """The quick study: walk (167 frames of its BVH trial, fewer_frames: use_all) cannot give N = 100 with 100
+    test frames left, so that cell is skipped with a note; every other cell runs, for every seed and method."""
+    from bsrbench.config import Study
+
+    study = _study()
+    assert isinstance(study, Study)
+    with pytest.raises(AttributeError):
+        study.skipped = {}  # frozen
+    assert (
+        study.data.data_frames("mocap", "walk") == 167
+    )  # 12_02.bvh: frames counted from the header
+    assert dict(study.skipped) == {
+        (
+            "random",
+            "mocap",
+            "walk",
+            100,
+        ): "N = 100 skipped: the 167 frames leave at most 67 test frames, fewer than min_test = 100"
+    }
+    design = study.design
+    assert design["pairs"] == [["hsc", "acrobatics"], ["mocap", "walk"]]
+    assert design["seeds"] == [0, 1, 2] and design["n_train"] == [30, 100]
+    assert design["skipped"] == [["random", "mocap", "walk", 100]]
+    # 3 cells run (hsc 30, hsc 100, walk 30) x 7 methods x 3 seeds
+    targets = study.fit_targets()
+    assert len(targets) == 3 * 7 * 3 == len(set(targets))
+    assert "results/quick/fit/random/mocap/walk/PM/n30/seed2.json" in targets
+    assert not any("walk/PM/n100" in t for t in targets)
+    assert study.largest_run_n("random", "mocap", "walk") == 30
+    assert study.skipped_notes("mocap") == {
+        "random": {"walk": [study.skipped[("random", "mocap", "walk", 100)]]}
+    }
+    assert study.results == "results/quick" and study.reports == "reports/quick"
+
+
+def test_skipped_cells_against_the_split_limits():
+    """A cell is skipped exactly when make_split refuses it (contiguous: the block and its gap)."""
+    from bsrbench.config import skipped_cells
+    from bsrbench.splits import make_split
+
+    frames = {("s", "a"): 260}
+    skipped = skipped_cells(
+        frames, [("s", "a")], ["random", "contiguous"], [100, 130, 160, 170], 100, 30
+    )
+    for protocol in ("random", "contiguous"):
+        for n in (100, 130, 160, 170):
+            try:
+                make_split(260, n, protocol=protocol, seed=0, min_test=100, gap=30)
+                ok = True
+            except InputError:
+                ok = False
+            assert ((protocol, "s", "a", n) not in skipped) == ok, (protocol, n)
+    assert "(fewer after the gap of 30)" in skipped[("contiguous", "s", "a", 160)]
+
+
+@pytest.mark.parametrize(
+    "overrides, match",
+    [
+        (
+            {"run": ["RVM", "Nope"]},
+            r"config key 'run': unknown method 'Nope'; defined under 'methods'",
+        ),
+        (
+            {"report.trace_method": "Nope"},
+            r"config key 'report.trace_method': unknown method 'Nope'; defined under 'methods'",
+        ),
+        (
+            {"report.gxy_methods": ["TGP"], "run": ["RVM"]},
+            r"config key 'report.gxy_methods': method 'TGP' is not run; 'run' lists \['RVM'\]",
+        ),
+        (
+            {"report.subjective_methods": ["Nope"]},
+            r"config key 'report.subjective_methods': unknown method 'Nope'",
+        ),
+        (
+            {"study_activities": {"hsc": [], "mocap": []}},
+            r"config key 'study_activities': no activity to study",
+        ),
+        (
+            {"study_activities": {"nosuch": ["golf"]}},
+            r"config key 'study_activities': unknown data source 'nosuch'; config/datasets.yaml defines",
+        ),
+        (
+            {"study_activities": {"hsc": ["golff"]}},
+            r"config key 'study_activities.hsc': unknown activity 'golff'; source 'hsc' has \[",
+        ),
+        (
+            {"protocols": ["cross_trial"], "study_activities": {"hsc": ["golf"]}},
+            r"config key 'protocols': cross_trial needs a motion-capture data set of several trials; "
+            r"hsc/golf is format 'mat' with 1 file\(s\)",
+        ),
+        (
+            {"study_activities": {"hsc": ["golf"], "mocap": ["walk"]}, "n_train": [100]},
+            r"config key 'study_activities.mocap': walk has 167 frames, and every n_train \[100\] leaves "
+            r"fewer than min_test=100",
+        ),
+        (
+            {"study_activities": {"hsc": ["golf"]}, "n_train": [30, 550]},
+            r"config key 'n_train': 550 is too large for hsc/golf \(600 frames\) with protocol 'random'",
+        ),
+        (
+            {"methods.Ridge.params": {"alpha": -1.0}},
+            r"config key 'methods.Ridge.params' \(method Ridge, bsrbench.models.reference:RidgeRegressor\)",
+        ),
+        ({"n_seeds": 0}, r"configuration: key 'n_seeds', value 0: "),
+        ({"nosuchkey": 1}, r"configuration: unknown key 'nosuchkey' \(value 1\)"),
+    ],
+)
+def test_study_checks_name_the_key_the_value_and_what_was_expected(overrides, match):
+    with pytest.raises(ValueError, match=match):
+        _study(**overrides)
+
+
+def test_an_empty_datasets_key_names_the_working_directory():
+    from bsrbench.config import DataSets, load_study
+
+    config = _merged()
+    config["datasets"] = {}
+    data = DataSets(config=config, entries={})
+    with pytest.raises(
+        ValueError, match=r"config key 'datasets': empty, .* working directory /here"
+    ):
+        load_study(data, cwd="/here")
+
+
+@pytest.mark.parametrize(
+    "entry, match",
+    [
+        (
+            {"format": "bvh", "files": []},
+            r"datasets.mocap.x: give `files` \(a list of paths\) or `cmu_trials`",
+        ),
+        (
+            {"format": "bvh", "cmu_trials": ["01_01"]},
+            r"datasets.mocap.x: cmu_trials are downloaded as .amc; expected format: amc, got 'bvh'",
+        ),
+        (
+            {"format": "bvh", "files": ["a.amc"]},
+            r"file 'a.amc' does not end in .bvh \(format: bvh\)",
+        ),
+        (
+            {
+                "format": "bvh",
+                "files": ["a.bvh"],
+                "fewer_frames": "use_all",
+                "frame_selection": "spread",
+            },
+            r"fewer_frames: use_all needs frame_selection: first; got 'spread'",
+        ),
+        ({"format": "bvh", "files": ["a.bvh"], "joint_map": []}, r"joint_map is an empty list"),
+        (
+            {"format": "mat", "files": ["a.mat", "b.mat"]},
+            r"format mat takes exactly one file; got 2",
+        ),
+        (
+            {"format": "mat", "files": ["a.mat"]},
+            r"config datasets: source\(s\) \['mocap'\] mix format mat with bvh/amc entries",
+        ),
+        (
+            {"format": "bvh", "files": ["a.bvh"], "frame_step": 2, "extra": 1},
+            r"data sets \(config/datasets.yaml\): unknown key 'datasets.mocap.x.extra'",
+        ),
+    ],
+)
+def test_dataset_checks_name_the_entry(entry, match):
+    from bsrbench.config import load_datasets
+
+    config = _merged()
+    config["datasets"]["mocap"]["x"] = entry
+    with pytest.raises(InputError, match=match):
+        load_datasets(config)
+
+
+def test_frame_step_on_mat_and_an_empty_codebook_are_refused():
+    from bsrbench.config import load_datasets
+
+    config = _merged()
+    config["datasets"]["hsc"]["golf"]["frame_step"] = 2
+    with pytest.raises(
+        InputError, match=r"datasets.hsc.golf: frame_step applies to bvh/amc trials; got 2"
+    ):
+        load_datasets(config)
+    config = _merged()
+    config["features"]["codebook"]["files"] = []
+    with pytest.raises(InputError, match=r"config features.codebook.files is empty"):
+        load_datasets(config)
+
+
+def test_cmu_trials_resolve_to_the_download_folder_and_defaults_are_filled_in():
+    from bsrbench.config import load_datasets
+
+    config = _merged()
+    config["download"]["dir"] = "dl/"
+    config["datasets"]["mocap"]["kick_x"] = {"format": "amc", "cmu_trials": ["10_1", "10_02"]}
+    data = load_datasets(config)
+    d = data.dataset("mocap", "kick_x")
+    assert d["files"] == ["dl/10/10_01.amc", "dl/10/10_02.amc"] and d["asf"] == "dl/10/10.asf"
+    assert d["enabled"] is True and d["frame_step"] == 1  # the schema's defaults
+    with pytest.raises(
+        InputError, match=r"config datasets: no data set mocap/nope; configured: \["
+    ):
+        data.dataset("mocap", "nope")
+
+
+def test_cv_seed_grid_table_methods_and_data_status():
+    from bsrbench.models import reference
+
+    study = _study(**{"cv.mode": "per_size", "methods.RVM.grid": None})
+    assert study.grid("Ridge") == reference.DEFAULT_GRID["RidgeRegressor"]  # grid: default
+    assert study.grid("RVM") == {}
+    assert study.cv_seed("RVM", "2") is None  # grid: null
+    assert study.cv_seed("Ridge", "2") == 0  # per_size: seed 0's CV for every seed
+    assert _study(**{"cv.mode": "per_job"}).cv_seed("Ridge", "2") == "2"
+    assert _study().cv_seed("Ridge", "2") is None  # cv.mode none
+    assert study.table_methods() == study.run  # one PM variant
+    status = study.data_status("hsc")
+    assert status["Acrobatics"] == "acrobatics"  # studied
+    assert status["Golf"]["kind"] == "here"  # data here, not studied
+    assert status["Navigate"]["kind"] == "none"  # no data set of hsc for it
+    code = study.estimator_sources("PM")
+    assert [Path(p).name for p in code] == [
+        "bsr.py",
+        "_bsr_kernels.py",
+        "runs.py",
+        "splits.py",
+        "estimators.py",
+        "io.py",
+    ]
+
+
+def test_report_arg_reads_snakemakes_report_option():
+    from bsrbench.config import report_arg
+
+    assert report_arg(["snakemake", "--cores", "2"]) is None
+    assert report_arg(["snakemake", "--report", "r/x.html"]) == "r/x.html"
+    assert report_arg(["snakemake", "--report=r/y.html"]) == "r/y.html"
+    assert report_arg(["snakemake", "--report"]) == "report.html"
+    assert report_arg(["snakemake", "--report", "--cores", "1"]) == "report.html"
+
+
+def test_report_checks_and_the_design_change_message(tmp_path, monkeypatch):
+    """--report refuses another study's report folder and a table of another design; the design-change
+    message names what changed; a table of the configured design passes both."""
+    import pandas as pd
+
+    from bsrbench.config import KEY_COLUMNS, check_report_is_current, design_change_message
+    from bsrbench.errors import DataFileError
+
+    monkeypatch.chdir(tmp_path)
+    study = _study(
+        **{"study_activities": {"hsc": ["golf"], "mocap": []}, "n_seeds": 1, "n_train": [30]}
+    )
+    with pytest.raises(
+        ValueError, match=r"--report reports/other/r.html: the HTML report of study 'quick'"
+    ):
+        check_report_is_current(study, ["snakemake", "--report", "reports/other/r.html"])
+    check_report_is_current(
+        study, ["snakemake", "--report", "reports/quick/report.html"]
+    )  # no table yet
+    assert design_change_message(study) is None
+    rows = [
+        {
+            "protocol": "random",
+            "source": "hsc",
+            "activity": "golf",
+            "method": m,
+            "n_train": 30,
+            "seed": 0,
+            "error": 1.0,
+        }
+        for m in study.run
+    ]
+    table = tmp_path / "results/quick/aggregate/results.csv"
+    table.parent.mkdir(parents=True)
+    pd.DataFrame(rows).to_csv(table, index=False)
+    check_report_is_current(study, ["snakemake", "--report", "reports/quick/report.html"])
+    assert design_change_message(study) is None
+    pd.DataFrame(rows[:-1]).to_csv(table, index=False)  # one method fewer than configured
+    message = design_change_message(study)
+    assert message.startswith(
+        "study 'quick': the configuration differs from the design of its results"
+    )
+    assert (
+        "method: the table has" in message and "1 job(s) to add, 0 no longer configured" in message
+    )
+    with pytest.raises(
+        DataFileError, match=r"does not match the configuration: 1 configured job\(s\) without"
+    ):
+        check_report_is_current(study, ["snakemake", "--report", "reports/quick/report.html"])
+    table.write_text("not,a\n\x00")
+    assert design_change_message(study) is None  # unreadable: the aggregate and report rules say so
+    assert KEY_COLUMNS[-1] == "seed"

@@ -10,6 +10,23 @@ functions.
 import sys
 from types import SimpleNamespace
 
+#: Modules a job server imports once before forking the jobs, running their ``warm_up()`` if they have one
+#: (:mod:`bsrbench.jobserver`).
+PRELOAD = (
+    "numpy",
+    "scipy.stats",
+    "sklearn.base",
+    "bsrbench.runs",
+    "bsrbench.tuning",
+    "bsrbench.models.bsr",
+    "bsrbench.models.reference",
+    "bsrbench.models.rvm",
+    "bsrbench.models.tgp",
+    "bsrbench.models.sr",
+    "bsrbench.models.ddl",
+    "arviz",  # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
+)
+
 
 def _ns(d):
     return SimpleNamespace(**d)

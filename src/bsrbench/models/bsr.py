@@ -541,3 +541,16 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         spread = np.einsum("tl,tlm->tm", wts, (out_y - mean[:, None, :]) ** 2)
         noise = wts @ (1.0 / self.samples_["g_ny"])
         return mean * self.y_scale_ + self.y_mean_, np.sqrt(spread + noise[:, None]) * self.y_scale_
+
+
+def warm_up():
+    """Load the sampler's numba kernels from the cache (tiny fits of each kernel variant), e.g. in a job server
+    before it forks the jobs."""
+    rng = np.random.default_rng(0)
+    X, Y = rng.standard_normal((12, 3)), rng.standard_normal((12, 2))
+    tiny = dict(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0)
+    BayesianSR(**tiny).fit(X, Y).predict(X[:2])
+    BayesianSR(**tiny, w_update="mh", atom_update="single").fit(X, Y)
+    BayesianSR(**tiny, noise="separate", w_prior_mean=-1.0, prediction="paper-text").fit(
+        X, Y
+    ).predict(X[:2])
