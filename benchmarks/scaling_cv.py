@@ -1,7 +1,7 @@
 """Choice of the input scaling (issue 14) by cross-validation on TRAINING frames only.
 
 For each hsc activity, training size N and seed, the training frames of the study's contiguous split
-(:meth:`bsrbench.study.JobSpec.split`, the frames the contiguous protocol trains on; its test frames are never
+(:meth:`bsrbench.splits.JobSpec.split`, the frames the contiguous protocol trains on; its test frames are never
 used) are cut into 5 folds: blocked (``KFold(shuffle=False)``: each validation fold is a run of consecutive
 frames, so validation poses lie off the range of the fold's training frames, as in the protocol) and shuffled
 (``KFold(shuffle=True)``, the study's tuning CV). Every estimator that scales its inputs (Ridge, PM, and

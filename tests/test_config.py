@@ -8,8 +8,14 @@ import yaml
 from snakemake.cli import parse_config
 from snakemake.utils import update_config
 
-from bsrbench.config import load_schema, retype_cli_config, retype_yaml_numbers
+from bsrbench.config import (
+    check_method_settings,
+    load_schema,
+    retype_cli_config,
+    retype_yaml_numbers,
+)
 from bsrbench.errors import InputError
+from bsrbench.estimators import estimator_defaults
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMAS = [
@@ -479,3 +485,215 @@ def test_report_checks_and_the_design_change_message(tmp_path, monkeypatch):
     table.write_text("not,a\n\x00")
     assert design_change_message(study) is None  # unreadable: the aggregate and report rules say so
     assert KEY_COLUMNS[-1] == "seed"
+
+
+# ------------------------------------------------------------------------- methods and their values
+REF = "bsrbench.models.reference"
+
+
+@pytest.mark.parametrize(
+    "setting, message",
+    [
+        (
+            {"estimator": "bsrbench.models.gpr:GPR"},
+            r"'methods\.M\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*cannot import module",
+        ),
+        ({"estimator": f"{REF}:Nope"}, r"'methods\.M\.estimator'.*no attribute 'Nope'"),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "params": {"alpah": 1.0}},
+            r"'methods\.M\.params': alpah: 1\.0 is not a parameter of .*RidgeRegressor; expected one of \['alpha'",
+        ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "cv_params": {"folds": 3}},
+            r"'methods\.M\.cv_params': folds: 3",
+        ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "grid": {"lambda": [1.0]}},
+            r"'methods\.M\.grid': lambda: \[1\.0\]",
+        ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "grid": {"alpha": 1.0}},
+            r"'methods\.M\.grid': alpha: 1\.0; expected a non-empty list",
+        ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "params": [1.0]},
+            r"'methods\.M\.params': expected a mapping",
+        ),
+    ],
+)
+def test_method_settings_are_checked_before_any_job(setting, message):
+    with pytest.raises(InputError, match=message):
+        check_method_settings(
+            {"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok", "M"]
+        )
+    check_method_settings(
+        {"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok"]
+    )  # M not run
+    with pytest.raises(InputError, match=r"'run': unknown method 'X'"):
+        check_method_settings({"M": setting}, ["X"])
+
+
+PM_PATH = "bsrbench.models.bsr:BayesianSR"
+PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
+
+
+@pytest.mark.parametrize(
+    "setting, cv, message",
+    [
+        (
+            {"params": {**PM_OK, "n_atoms": -3}},
+            None,
+            r"'methods\.M\.params' \(method M, bsrbench\.models\.bsr:BayesianSR\): params \{.*n_atoms: -3.*\}: "
+            r"n_atoms must be >= 1; got -3",
+        ),
+        (
+            {"params": {**PM_OK, "w_update": "foo"}},
+            None,
+            r"'methods\.M\.params' .*w_update must be one of \['ess', 'mh', .*\]; got 'foo'",
+        ),
+        (
+            {"params": {**PM_OK, "n_burn_in": 40}},
+            None,
+            r"'methods\.M\.params' .*n_burn_in must be smaller than n_iter=40 .*got n_burn_in=40",
+        ),
+        (
+            {"params": {**PM_OK, "thin": 25}},
+            None,
+            r"'methods\.M\.params' .*thin=25 retains no sweep of the n_iter - n_burn_in = 20 after burn-in; "
+            r"expected thin <= 20",
+        ),
+        (
+            {"params": {**PM_OK, "n_neighbors": 31}},
+            None,
+            r"'methods\.M\.params' .*fitted on the smallest n_train N = 30: BayesianSR needs at least "
+            r"max\(2, n_neighbors=31\) training rows; got n_samples = 30",
+        ),
+        (
+            {"params": PM_OK, "grid": {"n_neighbors": [3, 40]}},
+            {"mode": "per_size", "folds": 5},
+            r"'methods\.M\.grid' .*grid point \{n_neighbors: 40\} .*smallest n_train N = 30: .*n_neighbors=40",
+        ),
+        (
+            {"params": PM_OK, "grid": {"n_neighbors": [3, 27]}},
+            {"mode": "per_job", "folds": 5},
+            r"'methods\.M\.grid' .*CV fits of grid point \{n_neighbors: 27\} .*training folds of 24 frames "
+            r"\(N = 30, cv\.folds = 5\): .*n_neighbors=27\) training rows; got n_samples = 24",
+        ),
+        (
+            {"params": PM_OK, "grid": {"n_atoms": [8, -1]}},
+            {"mode": "per_size", "folds": 5},
+            r"'methods\.M\.grid' .*grid point \{n_atoms: -1\}.*n_atoms must be >= 1; got -1",
+        ),
+        (
+            {"params": PM_OK, "cv_params": {"n_iter": 10}, "grid": {"n_atoms": [8]}},
+            {"mode": "per_size", "folds": 5},
+            r"'methods\.M\.cv_params' .*cv_params \{n_iter: 10\} over params .*n_burn_in must be smaller than n_iter=10",
+        ),
+        (
+            {"params": PM_OK, "grid": {"n_atoms": [8]}},
+            {"mode": "per_size", "folds": 31},
+            r"'cv\.folds': 31 folds of the smallest n_train N = 30 .*would leave empty folds; expected cv\.folds <= 30",
+        ),
+        (
+            {"estimator": f"{REF}:NearestNeighbourRegressor", "params": {"n_neighbors": 31}},
+            None,
+            r"'methods\.M\.params' .*NearestNeighbourRegressor\).*N = 30: n_neighbors=31 exceeds .* n_samples = 30",
+        ),
+        (
+            {"estimator": f"{REF}:NearestNeighbourRegressor", "params": {"weights": ["uniform"]}},
+            None,
+            r"weights must be one of \['distance', 'uniform'\]; got \['uniform'\]",
+        ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "params": {"alpha": "1e-3"}},
+            None,
+            r"'methods\.M\.params' .*alpha must be a finite real number in \[0, inf\]; got '1e-3'",
+        ),
+        (
+            {"estimator": "bsrbench.models.tgp:TGP", "params": {"lambda_x": 0}},
+            None,
+            r"lambda_x must be a finite real number in \(0, inf\]; got 0",
+        ),
+        (
+            {"estimator": "sklearn.linear_model:Ridge", "params": {"alpha": -1.0}},
+            None,
+            r"'methods\.M\.params' \(method M, sklearn\.linear_model:Ridge\).*The 'alpha' parameter of Ridge must be",
+        ),
+    ],
+    ids=[
+        "n_atoms",
+        "w_update",
+        "burn-in",
+        "thin",
+        "n_neighbors>N",
+        "grid-n_neighbors>N",
+        "grid-n_neighbors>fold",
+        "grid-value",
+        "cv_params",
+        "folds>N",
+        "1-NN-k>N",
+        "unhashable-choice",
+        "string-number",
+        "TGP",
+        "sklearn",
+    ],
+)
+def test_method_values_are_checked_before_any_job(setting, cv, message):
+    """Before: every one of these passed the configuration check and failed (or, thin, silently kept one sweep)
+    only when a fit or CV job ran; now the error names the key, the method, the value and what was expected."""
+    setting = {"estimator": PM_PATH, "grid": None, **setting}
+    with pytest.raises(InputError, match=message):
+        check_method_settings(
+            {"M": setting}, ["M"], n_train=[100, 30], cv=cv or {"mode": "none", "folds": 5}
+        )
+
+
+def test_method_values_checked_only_where_they_apply():
+    """A grid is fitted only when CV runs; the smallest N and fold bound only the settings that are fitted."""
+    grid = {"n_neighbors": [3, 27]}  # 27 > the 24 rows of a training fold of N = 30, <= N
+    setting = {"estimator": PM_PATH, "params": PM_OK, "grid": grid}
+    check_method_settings(
+        {"M": setting}, ["M"], n_train=[30], cv={"mode": "none", "folds": 5}
+    )  # no CV: no grid
+    check_method_settings(
+        {"M": setting}, ["M"], n_train=[40], cv={"mode": "per_size", "folds": 5}
+    )  # folds of 32
+    check_method_settings({"M": setting}, ["M"])  # no sizes given: values alone
+    with pytest.raises(InputError, match="training folds of 24 frames"):
+        check_method_settings(
+            {"M": setting}, ["M"], n_train=[30, 40], cv={"mode": "per_size", "folds": 5}
+        )
+    # cv_params act in CV fits only
+    bad_cv = {**setting, "cv_params": {"n_iter": 10}}  # n_burn_in 20 >= 10 in the CV fits
+    check_method_settings({"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "none", "folds": 5})
+    with pytest.raises(InputError, match=r"'methods\.M\.cv_params'"):
+        check_method_settings(
+            {"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "per_size", "folds": 5}
+        )
+    # cv.folds > N matters only when a method is tuned
+    check_method_settings(
+        {"M": {**setting, "grid": None}}, ["M"], n_train=[30], cv={"mode": "per_size", "folds": 31}
+    )
+
+
+def test_method_settings_accept_the_shipped_configurations_and_report_defaults():
+    from pathlib import Path
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[1]
+    base = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    check_method_settings(
+        base["methods"], base["run"], n_train=base["n_train"], cv=base["cv"]
+    )  # default grids
+    for name in ("paper.yaml", "ci.yaml", "ablation.yaml"):
+        over = yaml.safe_load((root / "config" / name).read_text())
+        methods = {m: {**base["methods"].get(m, {}), **s} for m, s in over["methods"].items()}
+        check_method_settings(
+            {**base["methods"], **methods},
+            over.get("run", base["run"]),
+            n_train=over.get("n_train", base["n_train"]),
+            cv={**base["cv"], **over.get("cv", {})},
+        )
+    d = estimator_defaults(f"{REF}:RidgeRegressor")
+    assert d == {"alpha": 1.0, "standardize": True, "input_scaling": "pooled"}

@@ -221,7 +221,7 @@ def test_readme_override_examples_run_in_a_study_of_their_own(line):
 @pytest.mark.parametrize("how", ["configfile", "config"])
 def test_exponent_numbers_are_numbers_in_config_files_and_on_the_command_line(how, tmp_path):
     """YAML 1.1 reads 1e-3 as a string: before, `gap: 3e1` failed the schema ("'3e1' is not of type 'integer'")
-    and `alpha: 1e-3` reached the estimator as '1e-3'; now both are numbers (bsrbench.cli_config), and the
+    and `alpha: 1e-3` reached the estimator as '1e-3'; now both are numbers (bsrbench.config), and the
     load-time value check (which rejects a string alpha) passes."""
     if how == "configfile":
         over = tmp_path / "over.yaml"

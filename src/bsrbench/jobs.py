@@ -2,9 +2,9 @@
 
 A job is a dict with the Snakemake job's ``input``, ``output``, ``params`` and ``wildcards`` (dicts of strings, lists
 and plain values), ``log`` (list of paths) and ``threads``. The rules' shell commands build it
-(:func:`bsrbench.jobserver.job_params`) and hand it to :func:`bsrbench.jobserver.run`, which runs it in this process or
-in a fork of a warm job server; the result is the same either way. Heavy imports (scikit-learn, numba) happen inside the
-functions.
+(:func:`bsrbench.jobserver.job_params`, :func:`bsrbench.jobserver.job_settings`) and hand it to
+:func:`bsrbench.jobserver.run`, which runs it in this process or in a fork of a warm job server; the result is the same
+either way. Heavy imports (scikit-learn, numba) happen inside the functions.
 """
 
 import sys

@@ -3,8 +3,8 @@
 Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a fresh
 interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
-(``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once and forks a
-child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
+(``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
+module's ``PRELOAD`` and the ``warm_up()`` of its modules, see :func:`_preload`) and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
 a Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout and
 stderr, and results are identical.
 
