@@ -695,7 +695,7 @@ def test_a_changed_method_setting_reruns_its_fits_and_cv(ci_run):
         re.findall(r"output: results/ci/(?:fit|cv)/\S+/(\w+)/n\d+/seed\d+\.(?:npz|json)", out)
     )
     assert int(counts.get("fit", 0)) >= 1 and pm_jobs == {"PM"}, out[-3000:]  # PM's jobs only
-    assert "Params have changed since last execution" in out and "'n_iter': 60" in out
+    assert "Params have changed since last execution" in out and '"n_iter": 60' in out
     assert (
         _snapshot(ci_run) == before
     )  # (test_ci_rerun_is_a_no_op: the unchanged configuration reruns nothing)

@@ -21,7 +21,7 @@ from types import MappingProxyType
 
 import yaml
 
-from .errors import InputError
+from .errors import DataFileError, InputError
 
 #: The JSON schemas of the configuration (a source checkout; the Snakefile passes its own folder).
 SCHEMAS = Path(__file__).resolve().parents[2] / "workflow" / "schemas"
@@ -1114,8 +1114,6 @@ def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
     configuration (say, one written before a method was added) must never be reported as this study's. The
     message names what differs (:func:`design_changes`) and what to do.
     """
-    from .errors import DataFileError
-
     missing, extra, differ = design_changes(df, design)
     if not (missing or extra):
         return
