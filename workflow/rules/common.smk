@@ -1,6 +1,7 @@
 # The study's configuration (bsrbench.config) and the input functions of the fit, aggregate and report rules.
 import os
 import sys
+from pathlib import Path
 
 from snakemake.logging import logger
 
