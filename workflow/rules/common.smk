@@ -13,7 +13,10 @@ from bsrbench.config import (
 )
 
 STUDY = load_study(
-    DATA, schema_dir=Path(str(workflow.current_basedir)).parent / "schemas", cwd=os.getcwd()
+    DATA,
+    schema_dir=Path(str(workflow.current_basedir)).parent / "schemas",
+    cwd=os.getcwd(),
+    validate=not workflow.modifier.skip_validation,
 )
 #: Roots of this study's results, logs and report (features and poses are shared by all studies).
 RESULTS, LOGS, REPORTS = STUDY.results, STUDY.logs, STUDY.reports

@@ -8,6 +8,7 @@ DATA = load_datasets(
     schema_dir=Path(str(workflow.current_basedir)).parent / "schemas",
     config_args=workflow.config_settings.config_args,
     parsed_args=workflow.config_settings.config,
+    validate=not workflow.modifier.skip_validation,
 )
 
 dataset = DATA.dataset
