@@ -1,7 +1,5 @@
 # bsrbench: Bayesian sparse-representation pose estimation, reproduced and benchmarked.
 # Entry only: configuration, validation, rule modules, and the default target.
-from pathlib import Path
-
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -11,21 +9,9 @@ configfile: "config/datasets.yaml"
 configfile: "config/config.yaml"
 
 
-# `--config key='[...]'` and `key='{...}'` read as YAML, as in the configuration files (Snakemake keeps the
-# scalars inside them strings); then numbers such as 1e-3, which YAML 1.1 reads as strings, read as numbers
-# wherever the schema allows one (bsrbench.cli_config); before any validation.
-from bsrbench.cli_config import load_schema, retype_cli_config, retype_yaml_numbers
-
-retype_cli_config(config, workflow.config_settings.config_args, workflow.config_settings.config)
-retype_yaml_numbers(
-    config,
-    load_schema(
-        *(
-            Path(workflow.basedir) / "workflow" / "schemas" / f
-            for f in ("config.schema.yaml", "datasets.schema.yaml")
-        )
-    ),
-)
+# The configuration, read, retyped, validated and checked by bsrbench.config.
+include: "workflow/rules/datasets.smk"
+include: "workflow/rules/common.smk"
 
 
 # The fit, CV and chain jobs are shell commands `python -m bsrbench.jobserver job ...` (workflow/rules/fit.smk):
@@ -38,8 +24,6 @@ from bsrbench import jobserver
 jobserver.configure_shell_jobs(use_server=config.get("job_server", True))
 
 
-include: "workflow/rules/datasets.smk"
-include: "workflow/rules/common.smk"
 include: "workflow/rules/mocap.smk"
 include: "workflow/rules/features.smk"
 include: "workflow/rules/fit.smk"

@@ -25,8 +25,10 @@ import yaml
 from threadpoolctl import threadpool_limits
 
 from bsrbench.errors import InputError
+from bsrbench.io import load_features
 from bsrbench.models.bsr import BayesianSR
-from bsrbench.study import JobSpec, load_features, run_chain
+from bsrbench.runs import run_chain
+from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 

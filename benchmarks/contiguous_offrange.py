@@ -1,9 +1,9 @@
 """The contiguous protocol on the authors' (hsc) features: error and largest predicted angle per method.
 
 Reproduces issue 14 (predictions far outside the training range) and measures its fix. For each activity,
-training size N and seed, the study's own job function (:func:`bsrbench.study.run_job`) fits every method of
+training size N and seed, the study's own job function (:func:`bsrbench.runs.run_job`) fits every method of
 ``config/config.yaml`` with its fixed ``params`` (``cv.mode: none``, as a new user's first run) on the
-contiguous split of :func:`bsrbench.study.make_split` (gap 30, min_test 100, heading transform), and records
+contiguous split of :func:`bsrbench.splits.make_split` (gap 30, min_test 100, heading transform), and records
 the mean angle error (deg) and the largest absolute predicted angle (deg, before wrapping). Writes one row
 per (activity, N, seed, method) to ``benchmarks/results/<protocol>_<tag>.csv`` and prints the table of
 means over seeds.
@@ -31,7 +31,8 @@ from threadpoolctl import threadpool_limits
 
 from bsrbench.datasets import load_feature_mat
 from bsrbench.io import atomic_path
-from bsrbench.study import JobSpec, run_job
+from bsrbench.runs import run_job
+from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 FEATURES = ROOT / "resources" / "paper-features"

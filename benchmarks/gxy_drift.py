@@ -36,7 +36,7 @@ from bsrbench.datasets import load_feature_mat
 from bsrbench.models.bsr import BayesianSR
 from bsrbench.poses import get_pose_transform
 from bsrbench.seeds import derive_seed, split_seed
-from bsrbench.study import make_split
+from bsrbench.splits import make_split
 
 ROOT = Path(__file__).resolve().parents[1]
 SETTINGS = [

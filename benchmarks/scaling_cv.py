@@ -1,7 +1,7 @@
 """Choice of the input scaling (issue 14) by cross-validation on TRAINING frames only.
 
 For each hsc activity, training size N and seed, the training frames of the study's contiguous split
-(:meth:`bsrbench.study.JobSpec.split`, the frames the contiguous protocol trains on; its test frames are never
+(:meth:`bsrbench.splits.JobSpec.split`, the frames the contiguous protocol trains on; its test frames are never
 used) are cut into 5 folds: blocked (``KFold(shuffle=False)``: each validation fold is a run of consecutive
 frames, so validation poses lie off the range of the fold's training frames, as in the protocol) and shuffled
 (``KFold(shuffle=True)``, the study's tuning CV). Every estimator that scales its inputs (Ridge, PM, and
@@ -25,11 +25,12 @@ from contiguous_offrange import ACTIVITIES, load
 from sklearn.model_selection import KFold
 from threadpoolctl import threadpool_limits
 
+from bsrbench.estimators import make_estimator
 from bsrbench.io import atomic_path
 from bsrbench.metrics import mean_angle_error
 from bsrbench.models import scaling
 from bsrbench.poses import HeadingTransform
-from bsrbench.study import JobSpec, make_estimator
+from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 SCALINGS = ("pooled", "bin", "none", "bin-nofloor")

@@ -14,7 +14,7 @@ import pytest
 from test_workflow import copy_tree, smk
 
 from bsrbench.reporting.published import main as published_main
-from bsrbench.study import chain_seed
+from bsrbench.runs import chain_seed
 
 ABLATION = ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")
 

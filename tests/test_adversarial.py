@@ -2,7 +2,7 @@
 
 The data are the authors' acrobatics features (resources/paper-features/x4921.mat, the study's "hsc" source),
 a contiguous block of 30 training frames and test frames more than 30 frames away (the contiguous protocol of
-:func:`bsrbench.study.make_split`), heading transform on, as in the study. Before the shared input scaling
+:func:`bsrbench.splits.make_split`), heading transform on, as in the study. Before the shared input scaling
 (:mod:`bsrbench.models.scaling`), PM and ridge predicted angles of 1e7 deg on such a split.
 
 - a feature constant in training but not in test;
@@ -34,7 +34,7 @@ from bsrbench.models import (
     scaling,
 )
 from bsrbench.poses import HeadingTransform
-from bsrbench.study import make_split
+from bsrbench.splits import make_split
 
 ROOT = Path(__file__).resolve().parents[1]
 MAT = ROOT / "resources" / "paper-features" / "x4921.mat"

@@ -26,10 +26,10 @@ from test_bsr_geweke import (
 )
 from test_bsr_kernels import _grid_cdf
 
+from bsrbench.config import check_method_settings
 from bsrbench.errors import InputError
 from bsrbench.models import _bsr_kernels as kern
 from bsrbench.models.bsr import BayesianSR, training_error
-from bsrbench.study import check_method_settings
 
 SMALL = dict(
     n_atoms=6, n_neighbors=3, n_iter=30, n_burn_in=15, thin=3, n_predict_sweeps=3, random_state=0

@@ -10,19 +10,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bsrbench.convergence import convergence_summary
 from bsrbench.errors import InputError
+from bsrbench.io import load_features
 from bsrbench.models.bsr import BayesianSR
 from bsrbench.poses import get_pose_transform
 from bsrbench.reporting import convergence as conv
-from bsrbench.study import (
-    JobSpec,
-    chain_seed,
-    convergence_summary,
-    load_features,
-    pool_chains,
-    run_chain,
-    run_job,
-)
+from bsrbench.runs import chain_seed, pool_chains, run_chain, run_job
+from bsrbench.splits import JobSpec
 
 BSR = "bsrbench.models.bsr:BayesianSR"
 PARAMS = {"n_atoms": 8, "n_neighbors": 3, "n_iter": 40, "n_burn_in": 20, "thin": 2}
@@ -74,7 +69,7 @@ def test_pooled_prediction_is_the_mixture_of_the_chains(chains):
     # independent form of the mixture variance: mean within-chain variance + variance of the chain means
     var = np.mean([c["z_var"] for c in cs], axis=0) + means.var(axis=0)
     np.testing.assert_allclose(arrays["y_pred"], transform.inverse(means.mean(axis=0)), rtol=1e-12)
-    from bsrbench.study import inverse_std
+    from bsrbench.runs import inverse_std
 
     np.testing.assert_allclose(
         arrays["y_std"], inverse_std(transform, means.mean(axis=0), np.sqrt(var)), rtol=1e-9
@@ -119,6 +114,30 @@ def test_rhat_separates_stuck_chains_from_mixed_ones():
     assert convergence_summary(mixed)["r_hat_log_likelihood"] < 1.02
     assert convergence_summary(stuck)["r_hat_log_likelihood"] > 2
     assert convergence_summary(mixed)["ess_bulk_log_likelihood"] > 1000
+
+
+def test_tail_ess_and_mcse_of_independent_draws():
+    """4 chains of 2000 independent N(0, 1) draws: the tail ESS is about the 8000 draws and the MCSE of the mean
+    about sd / sqrt(8000); AR(1) chains with rho = 0.8 have about (1 - rho) / (1 + rho) of that ESS, so their
+    MCSE is about sd / sqrt(8000 / 9)."""
+    rng = np.random.default_rng(1)
+    iid = rng.normal(size=(4, 2000))
+    out = convergence_summary([{"trace_g_s": a, "n_burn_in": 0} for a in iid])
+    assert out["ess_tail_g_s"] == pytest.approx(8000, rel=0.15)
+    assert out["mcse_g_s"] == pytest.approx(iid.std() / np.sqrt(8000), rel=0.1)
+    rho = 0.8
+    ar = np.empty((4, 20000))
+    ar[:, 0] = rng.standard_normal(4)
+    for t in range(1, ar.shape[1]):
+        ar[:, t] = rho * ar[:, t - 1] + np.sqrt(1 - rho**2) * rng.standard_normal(4)
+    out = convergence_summary([{"trace_g_s": a, "n_burn_in": 0} for a in ar])
+    n_eff = ar.size * (1 - rho) / (1 + rho)
+    assert out["mcse_g_s"] == pytest.approx(ar.std() / np.sqrt(n_eff), rel=0.15)
+    assert set(out) == {
+        f"{stat}_{name}"
+        for stat in ("r_hat", "ess_bulk", "ess_tail", "mcse")
+        for name in ("log_likelihood", "g_xy", "g_s", "g_nx", "g_ny", "test_error")
+    }
 
 
 def test_a_stale_chain_of_another_split_is_rejected(chains):

@@ -105,7 +105,7 @@ def test_atomic_path_output_has_umask_permissions(tmp_path):
 
 
 def test_heading_column_comes_from_the_features_file(tmp_path):
-    from bsrbench.study import load_features
+    from bsrbench.io import load_features
 
     rng = np.random.default_rng(3)
     X, Y = rng.normal(size=(10, 4)), rng.uniform(-170, 170, size=(10, 6))

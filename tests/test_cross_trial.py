@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from bsrbench.errors import InputError
-from bsrbench.study import JobSpec, load_features, make_split, run_job
+from bsrbench.io import load_features
+from bsrbench.runs import run_job
+from bsrbench.splits import JobSpec, make_split
 
 TRIALS = np.repeat(np.arange(10), 60)  # 10 trials of 60 frames, as the mocap run data set
 

@@ -16,7 +16,6 @@ from bsrbench.datasets import (
     download_cmu_skeleton,
     download_cmu_trial,
     load_feature_mat,
-    load_features,
     prepare_motion,
     read_checksums,
     save_features,
@@ -26,6 +25,7 @@ from bsrbench.datasets import (
     verify_checksum,
 )
 from bsrbench.errors import DataFileError, InputError
+from bsrbench.io import load_features
 
 ROOT = Path(__file__).resolve().parents[1]
 FEAT = ROOT / "resources" / "paper-features"
@@ -234,10 +234,10 @@ def test_features_round_trip_and_missing_file(tmp_path):
     )
     save_features(tmp_path / "f.npz", fs)
     back = load_features(tmp_path / "f.npz")
-    np.testing.assert_array_equal(back.X, fs.X)
-    np.testing.assert_array_equal(back.Y, fs.Y)
-    assert back.angle_names == ["a", "b", "c"] and str(back.meta["activity"]) == "x"
-    with pytest.raises(DataFileError, match=r"gone\.npz: features file not found"):
+    np.testing.assert_array_equal(back["X"], fs.X)
+    np.testing.assert_array_equal(back["Y"], fs.Y)
+    assert back["angle_names"] == ["a", "b", "c"] and str(back["meta"]["activity"]) == "x"
+    with pytest.raises(DataFileError, match=r"gone\.npz: features file does not exist"):
         load_features(tmp_path / "gone.npz")
     with pytest.raises(DataFileError, match=r"gone\.mat: file not found"):
         load_feature_mat(tmp_path / "gone.mat")

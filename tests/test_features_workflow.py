@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from bsrbench.datasets import learn_codebook_from_trials, load_features, sha256_file
+from bsrbench.datasets import learn_codebook_from_trials, sha256_file
+from bsrbench.io import load_features
 
 ROOT = Path(__file__).resolve().parents[1]
 RULES = ROOT / "workflow" / "rules"
@@ -140,21 +141,24 @@ def test_features_rules_end_to_end(tmp_path):
 
     assert (work / "downloads" / "01" / "01_01.amc.sha256").is_file()
     golf = load_features(work / "results/features/hsc/golf.npz")
-    assert golf.X.shape == (40, 100) and golf.Y.shape == (40, 57)
+    assert golf["X"].shape == (40, 100) and golf["Y"].shape == (40, 57)
     n_frames = {"walk": 6, "tiny_amc": TINY_FRAMES}
     for activity, n in n_frames.items():
         fs = load_features(work / f"results/features/mocap/{activity}.npz")
-        assert fs.X.shape == (n, 6) and fs.Y.shape == (n, 57)
-        assert np.all(fs.X >= 0) and np.all(fs.X.sum(axis=1) > 0)
-        assert len(fs.angle_names) == 57
+        assert fs["X"].shape == (n, 6) and fs["Y"].shape == (n, 57)
+        assert np.all(fs["X"] >= 0) and np.all(fs["X"].sum(axis=1) > 0)
+        assert len(fs["angle_names"]) == 57
         png = (work / f"results/features/mocap/{activity}.preview.png").read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
         motion = np.load(work / f"results/mocap/mocap/{activity}.npz")
-        np.testing.assert_array_equal(motion["angles"], fs.Y)
+        np.testing.assert_array_equal(motion["angles"], fs["Y"])
     assert not (work / "results/features/mocap/not_here.npz").exists()
     amc = load_features(work / "results/features/mocap/tiny_amc.npz")
-    assert amc.angle_names[0] == "root_Xrotation" and str(amc.meta["paper_activity"]) == "Navigate"
-    assert list(amc.meta["trial_ids"]) == ["01_01"]
+    assert (
+        amc["angle_names"][0] == "root_Xrotation"
+        and str(amc["meta"]["paper_activity"]) == "Navigate"
+    )
+    assert list(amc["meta"]["trial_ids"]) == ["01_01"]
 
     # The codebook depends only on its own trials and the seed: recomputing it gives the same centres.
     with np.load(work / "results/features/codebook.npz") as z:

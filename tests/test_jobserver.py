@@ -239,16 +239,16 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
             return self[key]
 
     wildcards = Wildcards(method="PM")
-    make = jobserver.job_params(params)
-    job_json = make(
+    job_json = jobserver.job_params()(
         wildcards,
         {"features": "f.npz", "code": ["a.py", "b.py"]},
         {"path": str(tmp_path / "out.txt")},
     )
+    settings = jobserver.job_settings(params)(wildcards)
     job = json.loads(job_json)
-    assert job["params"] == {"estimator": "x:Y", "n": 3, "per_method": "PM!"}
+    assert json.loads(settings) == {"estimator": "x:Y", "n": 3, "per_method": "PM!"}
     assert job["input"] == {"features": "f.npz", "code": ["a.py", "b.py"]}
-    assert job["wildcards"] == {"method": "PM"}
+    assert job["wildcards"] == {"method": "PM"} and "params" not in job
     for use in ("1", "0"):
         log = tmp_path / f"job{use}.log"
         (tmp_path / "out.txt").unlink(missing_ok=True)
@@ -265,6 +265,8 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
                 "--log",
                 str(log),
                 job_json,
+                "--settings",
+                settings,
             ],
             env=env,
             cwd=tmp_path,
@@ -295,7 +297,7 @@ def test_shell_job_command_through_server_and_in_process(server_socket, tmp_path
     assert "no_such_job" in (tmp_path / "bad.log").read_text()
 
 
-@pytest.mark.parametrize("args, code", [(["--help"], 0), ([], 2), (["a", "b"], 2)])
+@pytest.mark.parametrize("args, code", [(["--help"], 0), ([], 2), (["-s", "a"], 2)])
 def test_command_line_without_a_socket_prints_usage(tmp_path, args, code):
     """`python -m bsrbench.jobserver --help` (or no argument) prints the usage; it used to start a server on a
     socket named '--help' (or fail with an IndexError)."""
@@ -308,3 +310,18 @@ def test_command_line_without_a_socket_prints_usage(tmp_path, args, code):
     )
     assert out.returncode == code and "usage: python -m bsrbench.jobserver SOCKET" in out.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_preload_imports_the_job_module_and_runs_the_warm_ups(tmp_path, monkeypatch):
+    """The server preloads a job module and the modules of its PRELOAD, and runs the warm_up() of each that has
+    one; a failing warm-up or a missing module is printed, not raised (it only costs the jobs time)."""
+    (tmp_path / "jobs_x.py").write_text(
+        "PRELOAD = ('model_x', 'model_bad', 'no_such_module_x')\n"
+        "def warm_up():\n    open('jobs.warm', 'w').write('1')\n"
+    )
+    (tmp_path / "model_x.py").write_text("def warm_up():\n    open('model.warm', 'w').write('1')\n")
+    (tmp_path / "model_bad.py").write_text("def warm_up():\n    raise RuntimeError('boom')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    jobserver._preload(["jobs_x", "also_missing_x"])
+    assert (tmp_path / "jobs.warm").is_file() and (tmp_path / "model.warm").is_file()

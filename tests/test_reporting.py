@@ -401,7 +401,7 @@ def test_design_changes_name_what_differs_and_the_error_says_what_to_do(tmp_path
     """The early warning (workflow/rules/common.smk) and the report rules' check share design_changes; the
     check's error names the study and the three ways out (before: 'rebuild it (snakemake <table>)', which does
     nothing when Snakemake has no record of the old design)."""
-    from bsrbench.reporting.tables import design_changes, study_of
+    from bsrbench.config import design_changes, study_of
 
     df = aggregate_rows(_rows({("golf", "PM"): [8.0, 9.0], ("golf", "RVM"): [12.0, 13.0]}))
     assert design_changes(df, DESIGN) == (0, 0, [])

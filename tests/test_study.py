@@ -6,23 +6,15 @@ import numpy as np
 import pytest
 
 from bsrbench.errors import DataFileError, InputError
-from bsrbench.poses import HeadingTransform
-from bsrbench.study import (
-    JobSpec,
-    check_method_settings,
-    cross_validate,
+from bsrbench.estimators import (
     default_grid,
-    estimator_defaults,
-    inverse_std,
     load_estimator_class,
-    load_features,
     make_estimator,
-    make_split,
-    max_n_train,
-    run_job,
-    write_arrays,
-    write_json,
 )
+from bsrbench.io import load_features, write_arrays, write_json
+from bsrbench.poses import HeadingTransform
+from bsrbench.runs import cross_validate, inverse_std, run_job
+from bsrbench.splits import JobSpec, make_split, max_n_train
 
 REF = "bsrbench.models.reference"
 
@@ -82,214 +74,6 @@ def test_estimator_loading_errors_name_the_path_and_parameter():
     assert default_grid(f"{REF}:RidgeRegressor") == {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]}
 
 
-@pytest.mark.parametrize(
-    "setting, message",
-    [
-        (
-            {"estimator": "bsrbench.models.gpr:GPR"},
-            r"'methods\.M\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*cannot import module",
-        ),
-        ({"estimator": f"{REF}:Nope"}, r"'methods\.M\.estimator'.*no attribute 'Nope'"),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "params": {"alpah": 1.0}},
-            r"'methods\.M\.params': alpah: 1\.0 is not a parameter of .*RidgeRegressor; expected one of \['alpha'",
-        ),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "cv_params": {"folds": 3}},
-            r"'methods\.M\.cv_params': folds: 3",
-        ),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "grid": {"lambda": [1.0]}},
-            r"'methods\.M\.grid': lambda: \[1\.0\]",
-        ),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "grid": {"alpha": 1.0}},
-            r"'methods\.M\.grid': alpha: 1\.0; expected a non-empty list",
-        ),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "params": [1.0]},
-            r"'methods\.M\.params': expected a mapping",
-        ),
-    ],
-)
-def test_method_settings_are_checked_before_any_job(setting, message):
-    with pytest.raises(InputError, match=message):
-        check_method_settings(
-            {"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok", "M"]
-        )
-    check_method_settings(
-        {"M": setting, "Ok": {"estimator": f"{REF}:RidgeRegressor"}}, ["Ok"]
-    )  # M not run
-    with pytest.raises(InputError, match=r"'run': unknown method 'X'"):
-        check_method_settings({"M": setting}, ["X"])
-
-
-PM_PATH = "bsrbench.models.bsr:BayesianSR"
-PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
-
-
-@pytest.mark.parametrize(
-    "setting, cv, message",
-    [
-        (
-            {"params": {**PM_OK, "n_atoms": -3}},
-            None,
-            r"'methods\.M\.params' \(method M, bsrbench\.models\.bsr:BayesianSR\): params \{.*n_atoms: -3.*\}: "
-            r"The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -3",
-        ),
-        (
-            {"params": {**PM_OK, "w_update": "foo"}},
-            None,
-            r"'methods\.M\.params' .*'w_update' parameter of BayesianSR must be a str among \['ess', 'mh', .*\]\. Got 'foo'",
-        ),
-        (
-            {"params": {**PM_OK, "n_burn_in": 40}},
-            None,
-            r"'methods\.M\.params' .*n_burn_in must be smaller than n_iter=40 .*got n_burn_in=40",
-        ),
-        (
-            {"params": {**PM_OK, "thin": 25}},
-            None,
-            r"'methods\.M\.params' .*thin=25 retains no sweep of the n_iter - n_burn_in = 20 after burn-in; "
-            r"expected thin <= 20",
-        ),
-        (
-            {"params": {**PM_OK, "n_neighbors": 31}},
-            None,
-            r"'methods\.M\.params' .*fitted on the smallest n_train N = 30: BayesianSR needs at least "
-            r"max\(2, n_neighbors=31\) training rows; got n_samples = 30",
-        ),
-        (
-            {"params": PM_OK, "grid": {"n_neighbors": [3, 40]}},
-            {"mode": "per_size", "folds": 5},
-            r"'methods\.M\.grid' .*grid point \{n_neighbors: 40\} .*smallest n_train N = 30: .*n_neighbors=40",
-        ),
-        (
-            {"params": PM_OK, "grid": {"n_neighbors": [3, 27]}},
-            {"mode": "per_job", "folds": 5},
-            r"'methods\.M\.grid' .*CV fits of grid point \{n_neighbors: 27\} .*training folds of 24 frames "
-            r"\(N = 30, cv\.folds = 5\): .*n_neighbors=27\) training rows; got n_samples = 24",
-        ),
-        (
-            {"params": PM_OK, "grid": {"n_atoms": [8, -1]}},
-            {"mode": "per_size", "folds": 5},
-            r"'methods\.M\.grid' .*grid point \{n_atoms: -1\}.*The 'n_atoms' parameter of BayesianSR must be an int in the range \[1, inf\)\. Got -1",
-        ),
-        (
-            {"params": PM_OK, "cv_params": {"n_iter": 10}, "grid": {"n_atoms": [8]}},
-            {"mode": "per_size", "folds": 5},
-            r"'methods\.M\.cv_params' .*cv_params \{n_iter: 10\} over params .*n_burn_in must be smaller than n_iter=10",
-        ),
-        (
-            {"params": PM_OK, "grid": {"n_atoms": [8]}},
-            {"mode": "per_size", "folds": 31},
-            r"'cv\.folds': 31 folds of the smallest n_train N = 30 .*would leave empty folds; expected cv\.folds <= 30",
-        ),
-        (
-            {"estimator": f"{REF}:NearestNeighbourRegressor", "params": {"n_neighbors": 31}},
-            None,
-            r"'methods\.M\.params' .*NearestNeighbourRegressor\).*N = 30: n_neighbors=31 exceeds .* n_samples = 30",
-        ),
-        (
-            {"estimator": f"{REF}:NearestNeighbourRegressor", "params": {"weights": ["uniform"]}},
-            None,
-            r"The 'weights' parameter of NearestNeighbourRegressor must be a str among .*Got \['uniform'\] instead",
-        ),
-        (
-            {"estimator": f"{REF}:RidgeRegressor", "params": {"alpha": "1e-3"}},
-            None,
-            r"'methods\.M\.params' .*The 'alpha' parameter of RidgeRegressor must be a float in the range \[0\.0, inf\)\. Got '1e-3'",
-        ),
-        (
-            {"estimator": "bsrbench.models.tgp:TGP", "params": {"lambda_x": 0}},
-            None,
-            r"The 'lambda_x' parameter of TGP must be a float in the range \(0\.0, inf\)\. Got 0 instead",
-        ),
-        (
-            {"estimator": "sklearn.linear_model:Ridge", "params": {"alpha": -1.0}},
-            None,
-            r"'methods\.M\.params' \(method M, sklearn\.linear_model:Ridge\).*The 'alpha' parameter of Ridge must be",
-        ),
-    ],
-    ids=[
-        "n_atoms",
-        "w_update",
-        "burn-in",
-        "thin",
-        "n_neighbors>N",
-        "grid-n_neighbors>N",
-        "grid-n_neighbors>fold",
-        "grid-value",
-        "cv_params",
-        "folds>N",
-        "1-NN-k>N",
-        "unhashable-choice",
-        "string-number",
-        "TGP",
-        "sklearn",
-    ],
-)
-def test_method_values_are_checked_before_any_job(setting, cv, message):
-    """Before: every one of these passed the configuration check and failed (or, thin, silently kept one sweep)
-    only when a fit or CV job ran; now the error names the key, the method, the value and what was expected."""
-    setting = {"estimator": PM_PATH, "grid": None, **setting}
-    with pytest.raises(InputError, match=message):
-        check_method_settings(
-            {"M": setting}, ["M"], n_train=[100, 30], cv=cv or {"mode": "none", "folds": 5}
-        )
-
-
-def test_method_values_checked_only_where_they_apply():
-    """A grid is fitted only when CV runs; the smallest N and fold bound only the settings that are fitted."""
-    grid = {"n_neighbors": [3, 27]}  # 27 > the 24 rows of a training fold of N = 30, <= N
-    setting = {"estimator": PM_PATH, "params": PM_OK, "grid": grid}
-    check_method_settings(
-        {"M": setting}, ["M"], n_train=[30], cv={"mode": "none", "folds": 5}
-    )  # no CV: no grid
-    check_method_settings(
-        {"M": setting}, ["M"], n_train=[40], cv={"mode": "per_size", "folds": 5}
-    )  # folds of 32
-    check_method_settings({"M": setting}, ["M"])  # no sizes given: values alone
-    with pytest.raises(InputError, match="training folds of 24 frames"):
-        check_method_settings(
-            {"M": setting}, ["M"], n_train=[30, 40], cv={"mode": "per_size", "folds": 5}
-        )
-    # cv_params act in CV fits only
-    bad_cv = {**setting, "cv_params": {"n_iter": 10}}  # n_burn_in 20 >= 10 in the CV fits
-    check_method_settings({"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "none", "folds": 5})
-    with pytest.raises(InputError, match=r"'methods\.M\.cv_params'"):
-        check_method_settings(
-            {"M": bad_cv}, ["M"], n_train=[40], cv={"mode": "per_size", "folds": 5}
-        )
-    # cv.folds > N matters only when a method is tuned
-    check_method_settings(
-        {"M": {**setting, "grid": None}}, ["M"], n_train=[30], cv={"mode": "per_size", "folds": 31}
-    )
-
-
-def test_method_settings_accept_the_shipped_configurations_and_report_defaults():
-    from pathlib import Path
-
-    import yaml
-
-    root = Path(__file__).resolve().parents[1]
-    base = yaml.safe_load((root / "config" / "config.yaml").read_text())
-    check_method_settings(
-        base["methods"], base["run"], n_train=base["n_train"], cv=base["cv"]
-    )  # default grids
-    for name in ("paper.yaml", "ci.yaml", "ablation.yaml"):
-        over = yaml.safe_load((root / "config" / name).read_text())
-        methods = {m: {**base["methods"].get(m, {}), **s} for m, s in over["methods"].items()}
-        check_method_settings(
-            {**base["methods"], **methods},
-            over.get("run", base["run"]),
-            n_train=over.get("n_train", base["n_train"]),
-            cv={**base["cv"], **over.get("cv", {})},
-        )
-    d = estimator_defaults(f"{REF}:RidgeRegressor")
-    assert d == {"alpha": 1.0, "standardize": True, "input_scaling": "pooled"}
-
-
 def test_inverse_std_of_heading_matches_monte_carlo():
     rng = np.random.default_rng(0)
     t = HeadingTransform()
@@ -326,7 +110,7 @@ def test_load_features_checks_the_file(tmp_path):
         load_features(bad)
     nan = tmp_path / "nan.npz"
     np.savez(nan, X=np.array([[1.0, np.nan]]), Y=np.ones((1, 2)))
-    with pytest.raises(DataFileError, match="non-finite value in row 0"):
+    with pytest.raises(DataFileError, match=r"non-finite value\(s\), first at row 0"):
         load_features(nan)
     # a truncated file (an interrupted copy): numpy raises zipfile.BadZipFile, which used to reach the job's log
     good = _synthetic_features(tmp_path)

@@ -224,7 +224,7 @@ def test_readme_override_examples_run_in_a_study_of_their_own(line):
 @pytest.mark.parametrize("how", ["configfile", "config"])
 def test_exponent_numbers_are_numbers_in_config_files_and_on_the_command_line(how, tmp_path):
     """YAML 1.1 reads 1e-3 as a string: before, `gap: 3e1` failed the schema ("'3e1' is not of type 'integer'")
-    and `alpha: 1e-3` reached the estimator as '1e-3'; now both are numbers (bsrbench.cli_config), and the
+    and `alpha: 1e-3` reached the estimator as '1e-3'; now both are numbers (bsrbench.config), and the
     load-time value check (which rejects a string alpha) passes."""
     if how == "configfile":
         over = tmp_path / "over.yaml"
@@ -702,7 +702,7 @@ def test_a_changed_method_setting_reruns_its_fits_and_cv(ci_run):
         re.findall(r"output: results/ci/(?:fit|cv)/\S+/(\w+)/n\d+/seed\d+\.(?:npz|json)", out)
     )
     assert int(counts.get("fit", 0)) >= 1 and pm_jobs == {"PM"}, out[-3000:]  # PM's jobs only
-    assert "Params have changed since last execution" in out and "'n_iter': 60" in out
+    assert "Params have changed since last execution" in out and '"n_iter": 60' in out
     assert (
         _snapshot(ci_run) == before
     )  # (test_ci_rerun_is_a_no_op: the unchanged configuration reruns nothing)

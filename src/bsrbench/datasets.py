@@ -309,23 +309,6 @@ def save_features(path, fs):
         np.savez(tmp, **arrays)
 
 
-def load_features(path):
-    """Read a features ``.npz`` written by :func:`save_features` (checks X and Y are finite)."""
-    path = Path(path)
-    if not path.is_file():
-        raise DataFileError(path, "features file not found")
-    with np.load(path, allow_pickle=False) as z:
-        for key in ("X", "Y", "frames", "angle_names"):
-            if key not in z:
-                raise DataFileError(
-                    path, f"has no array {key!r}; expected X, Y, frames, angle_names"
-                )
-        d = {k: z[k] for k in z.files}
-    check_features(d["X"], d["Y"], str(path))
-    meta = {k: v for k, v in d.items() if k not in ("X", "Y", "frames", "angle_names")}
-    return FeatureSet(d["X"], d["Y"], d["frames"], [str(a) for a in d["angle_names"]], meta)
-
-
 def build_mat_features(
     mat_path,
     out_path,

@@ -2,13 +2,30 @@
 
 A job is a dict with the Snakemake job's ``input``, ``output``, ``params`` and ``wildcards`` (dicts of strings, lists
 and plain values), ``log`` (list of paths) and ``threads``. The rules' shell commands build it
-(:func:`bsrbench.jobserver.job_params`) and hand it to :func:`bsrbench.jobserver.run`, which runs it in this process or
-in a fork of a warm job server; the result is the same either way. Heavy imports (scikit-learn, numba) happen inside the
-functions.
+(:func:`bsrbench.jobserver.job_params`, :func:`bsrbench.jobserver.job_settings`) and hand it to
+:func:`bsrbench.jobserver.run`, which runs it in this process or in a fork of a warm job server; the result is the same
+either way. Heavy imports (scikit-learn, numba) happen inside the functions.
 """
 
 import sys
 from types import SimpleNamespace
+
+#: Modules a job server imports once before forking the jobs, running their ``warm_up()`` if they have one
+#: (:mod:`bsrbench.jobserver`).
+PRELOAD = (
+    "numpy",
+    "scipy.stats",
+    "sklearn.base",
+    "bsrbench.runs",
+    "bsrbench.tuning",
+    "bsrbench.models.bsr",
+    "bsrbench.models.reference",
+    "bsrbench.models.rvm",
+    "bsrbench.models.tgp",
+    "bsrbench.models.sr",
+    "bsrbench.models.ddl",
+    "arviz",  # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
+)
 
 
 def _ns(d):
@@ -17,7 +34,7 @@ def _ns(d):
 
 def _params(inp, p):
     """The job's estimator parameters and CV seconds: the CV's choice if the job reads one, else the fixed ones."""
-    from .study import read_json
+    from .io import read_json
 
     if inp.get("cv"):
         cv = read_json(inp["cv"])
@@ -27,7 +44,9 @@ def _params(inp, p):
 
 def fit(job):
     """Rule fit: one (protocol, source, activity, method, n_train, seed): fit, predict, score, result row."""
-    from .study import JobSpec, load_features, run_job, write_arrays, write_json
+    from .io import load_features, write_arrays, write_json
+    from .runs import run_job
+    from .splits import JobSpec
 
     w, p, inp, out = _ns(job["wildcards"]), _ns(job["params"]), job["input"], job["output"]
     spec = JobSpec.from_wildcards(w, p)
@@ -47,7 +66,9 @@ def fit(job):
 
 def cv(job):
     """Rule cv: K-fold grid search on the training frames of one split."""
-    from .study import JobSpec, cross_validate, load_features, write_json
+    from .io import load_features, write_json
+    from .runs import cross_validate
+    from .splits import JobSpec
 
     w, p, inp = _ns(job["wildcards"]), _ns(job["params"]), job["input"]
     spec = JobSpec.from_wildcards(w, p)
@@ -68,7 +89,9 @@ def cv(job):
 
 def fit_chain(job):
     """Rule fit_chain: one MCMC chain (wildcard ``chain``) of one split; writes the chain file."""
-    from .study import JobSpec, load_features, run_chain, write_arrays
+    from .io import load_features, write_arrays
+    from .runs import run_chain
+    from .splits import JobSpec
 
     w, p, inp = _ns(job["wildcards"]), _ns(job["params"]), job["input"]
     spec = JobSpec.from_wildcards(w, p)
@@ -89,8 +112,9 @@ def fit_chain(job):
 
 def pool(job):
     """Rule pool_chains: the result row and predictions of a split from its chain files."""
-    from .io import read_npz
-    from .study import JobSpec, load_features, pool_chains, write_arrays, write_json
+    from .io import load_features, read_npz, write_arrays, write_json
+    from .runs import pool_chains
+    from .splits import JobSpec
 
     w, p, inp, out = _ns(job["wildcards"]), _ns(job["params"]), job["input"], job["output"]
     spec = JobSpec.from_wildcards(w, p)

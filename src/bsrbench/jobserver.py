@@ -3,8 +3,8 @@
 Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a fresh
 interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
-(``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once and forks a
-child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
+(``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
+module's ``PRELOAD`` and the ``warm_up()`` of its modules, see :func:`_preload`) and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
 a Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout and
 stderr, and results are identical.
 
@@ -50,21 +50,6 @@ IDLE_SECONDS = 120.0
 OWNER_VAR = "BSRBENCH_JOBSERVER_OWNER"
 #: How long a job waits for a server it started to listen.
 START_TIMEOUT = 60.0
-#: Modules the server imports before forking (what the jobs would otherwise import each time).
-PRELOAD = (
-    "numpy",
-    "scipy.stats",
-    "sklearn.base",
-    "bsrbench.study",
-    "bsrbench.tuning",
-    "bsrbench.models.bsr",
-    "bsrbench.models.reference",
-    "bsrbench.models.rvm",
-    "bsrbench.models.tgp",
-    "bsrbench.models.sr",
-    "bsrbench.models.ddl",
-    "arviz",  # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
-)
 _PKG = Path(__file__).resolve().parent
 #: Environment variables that set the thread counts of numba and of the BLAS/OpenMP libraries.
 _THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
@@ -126,29 +111,37 @@ def _named(nl):
     return {name: _plain(val) for name, val in nl.items()}
 
 
-def job_params(params):
-    """A Snakemake ``params`` function: the job as JSON (named input, output, wildcards, and ``params`` evaluated),
-    for a shell rule that runs ``python -m bsrbench.jobserver job TARGET --threads {threads} --log {log} JSON``.
+def job_params():
+    """A Snakemake ``params`` function: the job's named input, output and wildcards as JSON, for a shell rule
+    that runs ``python -m bsrbench.jobserver job TARGET --threads {threads} --log {log} JOB --settings SETTINGS``
+    (SETTINGS: :func:`job_settings`).
 
-    ``params`` maps names to values or to functions of the wildcards (as in a rule's ``params``). A shell command
-    starts in about 0.06 s where a ``script:`` job spends about 0.25 s importing Snakemake's script module, which
-    in a study of thousands of sub-second jobs is minutes of wall time (benchmarks/profile_study.py).
+    A shell command starts in about 0.06 s where a ``script:`` job spends about 0.25 s importing Snakemake's
+    script module, which in a study of thousands of sub-second jobs is minutes of wall time
+    (benchmarks/profile_study.py).
     """
     import json
 
     def job(wildcards, input, output):
-        values = {k: (v(wildcards) if callable(v) else v) for k, v in params.items()}
         return json.dumps(
-            {
-                "input": _named(input),
-                "output": _named(output),
-                "params": values,
-                "wildcards": _named(wildcards),
-            },
+            {"input": _named(input), "output": _named(output), "wildcards": _named(wildcards)},
             sort_keys=True,
         )
 
     return job
+
+
+def job_settings(params):
+    """A Snakemake ``params`` function: ``params`` (names to values or to functions of the wildcards) evaluated,
+    as JSON: the job's ``params``. It depends on the wildcards only, so Snakemake's params trigger records it
+    and a changed setting reruns the job."""
+    import json
+
+    def settings(wildcards):
+        values = {k: (v(wildcards) if callable(v) else v) for k, v in params.items()}
+        return json.dumps(values, sort_keys=True)
+
+    return settings
 
 
 def _resolve(target):
@@ -242,8 +235,9 @@ def _locked(path):
         lock.close()
 
 
-def _start_server(path):
-    """Start a server unless another job is starting one; wait until it listens."""
+def _start_server(path, preload=()):
+    """Start a server (preloading the modules ``preload``) unless another job is starting one; wait until it
+    listens."""
     lock = _locked(path)
     try:
         try:
@@ -257,7 +251,7 @@ def _start_server(path):
             )
         env["NUMBA_NUM_THREADS"] = str(os.cpu_count() or 1)
         subprocess.Popen(
-            [sys.executable, "-m", "bsrbench.jobserver", str(path)],
+            [sys.executable, "-m", "bsrbench.jobserver", str(path), *preload],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=open(f"{path}.log", "a"),
@@ -284,7 +278,7 @@ def _run_remote(target, job):
         try:
             sock = _connect(path)
         except OSError:
-            sock = _start_server(path)
+            sock = _start_server(path, preload=[target.split(":")[0]])
         with sock:
             _send(
                 sock,
@@ -455,16 +449,30 @@ def _supervise(conn, request):
     os._exit(0)
 
 
-def serve(path, idle=IDLE_SECONDS):
-    """Import the job modules, listen on ``path`` and fork a supervisor per request, until asked to shut down,
-    until every Snakemake process it served for is gone, or until idle for ``idle`` seconds; then remove its
-    files."""
-    for name in PRELOAD:
+def _preload(modules):
+    """Import the job modules ``modules`` and the modules each lists in its ``PRELOAD``, and run the
+    ``warm_up()`` of those that have one (e.g. a model loading its numba kernels): what every forked job would
+    otherwise do itself."""
+    for name in modules:
         try:
-            importlib.import_module(name)
+            module = importlib.import_module(name)
         except ImportError:
-            pass
-    _warm_numba()
+            traceback.print_exc()
+            continue
+        for dep in [name, *getattr(module, "PRELOAD", ())]:
+            try:
+                warm_up = getattr(importlib.import_module(dep), "warm_up", None)
+                if callable(warm_up):
+                    warm_up()
+            except Exception:
+                traceback.print_exc()  # a failed warm-up only costs the jobs time
+
+
+def serve(path, idle=IDLE_SECONDS, preload=()):
+    """Import the job modules ``preload`` (:func:`_preload`), listen on ``path`` and fork a supervisor per
+    request, until asked to shut down, until every Snakemake process it served for is gone, or until idle for
+    ``idle`` seconds; then remove its files."""
+    _preload(preload)
     # Move everything imported so far out of the garbage collector's reach: a forked job that runs a collection
     # would otherwise write to (and so copy) every page of the server's objects.
     gc.freeze()
@@ -524,43 +532,6 @@ def serve(path, idle=IDLE_SECONDS):
             _remove_files(path, lock, socket_ino)
 
 
-def _warm_numba():
-    """Load the BSR kernels from numba's cache once, so that forked jobs do not."""
-    try:
-        import numpy as np
-
-        from bsrbench.models.bsr import BayesianSR
-
-        rng = np.random.default_rng(0)
-        X, Y = rng.standard_normal((12, 3)), rng.standard_normal((12, 2))
-        BayesianSR(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0).fit(
-            X, Y
-        ).predict(X[:2])
-        BayesianSR(
-            n_atoms=2,
-            n_neighbors=1,
-            n_iter=2,
-            n_burn_in=1,
-            thin=1,
-            w_update="mh",
-            atom_update="single",
-            random_state=0,
-        ).fit(X, Y)
-        BayesianSR(
-            n_atoms=2,
-            n_neighbors=1,
-            n_iter=2,
-            n_burn_in=1,
-            thin=1,
-            noise="separate",
-            w_prior_mean=-1.0,
-            prediction="paper-text",
-            random_state=0,
-        ).fit(X, Y).predict(X[:2])
-    except Exception:
-        traceback.print_exc()
-
-
 #: Environment variable that switches the job server off ("0") for shell jobs; the Snakefile sets it from the
 #: config key job_server (an environment variable, not a rule param: where a job runs does not change its result,
 #: so switching it must not rerun finished jobs).
@@ -583,22 +554,26 @@ def main(argv=None):
 
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] != ["job"]:
-        if len(argv) != 1 or argv[0].startswith("-"):
+        if not argv or argv[0].startswith("-"):
             print(
-                "usage: python -m bsrbench.jobserver SOCKET          serve jobs on the Unix socket SOCKET\n"
-                "       python -m bsrbench.jobserver job --help      run one job (the study's rules do this)",
+                "usage: python -m bsrbench.jobserver SOCKET [MODULE ...]  serve jobs on the Unix socket SOCKET,\n"
+                "                                                         the job modules MODULE preloaded\n"
+                "       python -m bsrbench.jobserver job --help           run one job (the study's rules do this)",
                 file=sys.stderr,
             )
             raise SystemExit(0 if argv in (["-h"], ["--help"]) else 2)
-        serve(argv[0])
+        serve(argv[0], preload=argv[1:])
         return
     ap = argparse.ArgumentParser(prog="python -m bsrbench.jobserver job")
     ap.add_argument("target", help="module:function of bsrbench.jobs")
-    ap.add_argument("job", help="the job as JSON (job_params)")
+    ap.add_argument("job", help="the job's input, output and wildcards as JSON (job_params)")
+    ap.add_argument("--settings", default="{}", help="the job's params as JSON (job_settings)")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--log", action="append", default=[])
     args = ap.parse_args(argv[1:])
-    job = dict(json.loads(args.job), threads=args.threads, log=args.log)
+    job = dict(
+        json.loads(args.job), params=json.loads(args.settings), threads=args.threads, log=args.log
+    )
     run(args.target, job, use_server=os.environ.get(USE_SERVER_VAR, "1") != "0")
 
 

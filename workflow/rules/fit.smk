@@ -1,15 +1,11 @@
 # Fit jobs: one per (protocol, source, activity, method, n_train, seed); CV jobs choose hyper-parameters.
-#
-# The bodies are in bsrbench.jobs; each rule's shell command hands its job (params.job: JSON of the named input, output,
-# wildcards and the *_PARAMS below, evaluated) to bsrbench.jobserver, which runs it in a fork of a warm Python process
-# (config key job_server) or in the command's own process. Shell rather than script: a script job would spend ~0.25 s
-# importing Snakemake.
-#
-# The *_PARAMS are also given as plain params, which the job does not read: Snakemake's params trigger records only
-# params that do not depend on input or output ("non-derived"), and params.job does, so without them a changed method
-# setting (e.g. --config methods='{PM: {params: {n_iter: 60}}}') would rerun no fit and leave stale results.
+# Each shell command hands its job (params.job: input, output, wildcards; params.settings: the *_PARAMS) to
+# bsrbench.jobserver, which runs the body in bsrbench.jobs in a fork of a warm process or in-process.
 
-JOB = "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}}"
+JOB = (
+    "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "
+    "--settings {{params.settings:q}}"
+)
 
 CV_PARAMS = dict(
     estimator=lambda w: method_setting(w.method)["estimator"],
@@ -56,8 +52,8 @@ rule cv:
         mem_mb=2000,
         runtime=120,
     params:
-        **CV_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(CV_PARAMS),
+        settings=jobserver.job_settings(CV_PARAMS),
+        job=jobserver.job_params(),
     shell:
         JOB.format(target="bsrbench.jobs:cv")
 
@@ -83,8 +79,8 @@ rule fit:
         mem_mb=2000,
         runtime=30,
     params:
-        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(FIT_PARAMS),
+        settings=jobserver.job_settings(FIT_PARAMS),
+        job=jobserver.job_params(),
     shell:
         JOB.format(target="bsrbench.jobs:fit")
 
@@ -111,8 +107,8 @@ rule fit_chain:
         mem_mb=2000,
         runtime=60,
     params:
-        **CHAIN_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(CHAIN_PARAMS),
+        settings=jobserver.job_settings(CHAIN_PARAMS),
+        job=jobserver.job_params(),
     shell:
         JOB.format(target="bsrbench.jobs:fit_chain")
 
@@ -136,7 +132,7 @@ rule pool_chains:
         mem_mb=2000,
         runtime=10,
     params:
-        **FIT_PARAMS,  # not read by the job: recorded for Snakemake's params trigger (see above)
-        job=jobserver.job_params(FIT_PARAMS),
+        settings=jobserver.job_settings(FIT_PARAMS),
+        job=jobserver.job_params(),
     shell:
         JOB.format(target="bsrbench.jobs:pool")

@@ -14,7 +14,7 @@ import numpy as np
 
 sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.io import read_npz
+from bsrbench.io import load_features, read_npz
 from bsrbench.metrics import wrap_degrees
 from bsrbench.reporting.plots import (
     plot_subjective,
@@ -24,7 +24,6 @@ from bsrbench.reporting.plots import (
     subjective_panels,
 )
 from bsrbench.reporting.tables import read_results
-from bsrbench.study import load_features
 
 sm = snakemake
 # the predictions drawn here are those of the configured study: fail on an aggregate of another one

@@ -5,6 +5,7 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")
 
+from bsrbench.estimators import estimator_defaults
 from bsrbench.reporting.comparisons import read_comparisons
 from bsrbench.reporting.plots import (
     PROTOCOL_LINE_NAMES,
@@ -13,7 +14,6 @@ from bsrbench.reporting.plots import (
 )
 from bsrbench.reporting.report import missing_data_note, write_body, write_generated
 from bsrbench.reporting.tables import latex_escape, read_paper_tables, read_results
-from bsrbench.study import estimator_defaults
 
 sm = snakemake
 root = Path(

@@ -272,7 +272,7 @@ class BayesianSR(RegressorMixin, BaseEstimator):
 
         scikit-learn's ``_parameter_constraints`` first (types, ranges, allowed strings), then the checks that
         tie parameters together. Called by :meth:`fit` and, before any job runs, by the study's configuration
-        check (:func:`bsrbench.study.check_method_settings`). Raises InputError naming the parameter, its value
+        check (:func:`bsrbench.config.check_method_settings`). Raises InputError naming the parameter, its value
         and what was expected.
         """
         try:
@@ -614,3 +614,16 @@ def training_error(estimator, X_train, Y_train, inverse=None):
     """
     Z = estimator.predict(X_train)
     return mean_angle_error(Y_train, Z if inverse is None else inverse(Z))
+
+
+def warm_up():
+    """Load the sampler's numba kernels from the cache (tiny fits of each kernel variant), e.g. in a job server
+    before it forks the jobs."""
+    rng = np.random.default_rng(0)
+    X, Y = rng.standard_normal((12, 3)), rng.standard_normal((12, 2))
+    tiny = dict(n_atoms=2, n_neighbors=1, n_iter=2, n_burn_in=1, thin=1, random_state=0)
+    BayesianSR(**tiny).fit(X, Y).predict(X[:2])
+    BayesianSR(**tiny, w_update="mh", atom_update="single").fit(X, Y)
+    BayesianSR(**tiny, noise="separate", w_prior_mean=-1.0, prediction="paper-text").fit(
+        X, Y
+    ).predict(X[:2])

@@ -4,7 +4,7 @@
 A method run with several chains per split (config key ``methods.<M>.chains``) has, in its rows of the
 aggregate, ``n_chains`` and the split R-hat and bulk ESS across chains (ArviZ; Vehtari, Gelman, Simpson,
 Carpenter & Buerkner 2021) of the log-likelihood, g_xy, g_s (g_nx, g_ny with separate noise precisions)
-and the test error of each retained posterior sample (see :func:`bsrbench.study.convergence_summary`).
+and the test error of each retained posterior sample (see :func:`bsrbench.convergence.convergence_summary`).
 Rows of one-chain methods have NaN there. The ablation runs PM variants as methods of their own
 (``config/ablation.yaml``); the variants of a study are the methods with the estimator of the trace method.
 """
@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from ..convergence import CONVERGENCE_SERIES
 from ..io import atomic_path
-from ..study import CONVERGENCE_SERIES
 from .tables import activity_label, best_mask, format_cell, latex_escape, paper_key, summarize
 
 #: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.

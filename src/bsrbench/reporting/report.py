@@ -377,7 +377,7 @@ def parameters_used(df, *, defaults, labels=None):
     ``set``: ``{name: [values]}`` of the parameters given by the configuration or chosen by CV (the aggregate
     table's ``params``, one list entry per distinct value over jobs); ``default``: ``{name: value}`` of the
     estimator's other constructor parameters (``defaults[method]``, e.g. from
-    :func:`bsrbench.study.estimator_defaults`), i.e. the values it ran with. ``random_state`` is set per job.
+    :func:`bsrbench.estimators.estimator_defaults`), i.e. the values it ran with. ``random_state`` is set per job.
     """
     out = {}
     for m in _methods(df, labels or {}):

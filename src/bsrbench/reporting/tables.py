@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..config import KEY_COLUMNS, check_design
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
 
@@ -29,7 +30,6 @@ PAPER_TABLES = {
 }
 #: Methods of the paper's tables (their labels), in the paper's column order.
 PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
-KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
 #: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
 NO_ROW = {
     "none": "no data set of this source",
@@ -71,7 +71,7 @@ def activity_label(activity, paper_activity=None):
 
 # ------------------------------------------------------------------------------------------------ aggregate
 def aggregate_rows(rows):
-    """One tidy DataFrame from result rows (dicts as written by :func:`bsrbench.study.run_job`).
+    """One tidy DataFrame from result rows (dicts as written by :func:`bsrbench.runs.run_job`).
 
     Nested values (params, per-angle RMS, versions) become JSON strings. Rows are sorted by the key
     columns; a duplicate key raises InputError.
@@ -173,91 +173,6 @@ def check_rows(df, *, path):
             raise DataFileError(
                 path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}"
             )
-
-
-def design_changes(df, design):
-    """How the jobs of the aggregate table ``df`` differ from the configured study ``design`` (see
-    :func:`check_design`): ``(missing, extra, differences)``, the number of configured jobs without a row, the
-    number of rows of jobs not configured, and one sentence per key column whose values differ ("n_train: the
-    table has [30, 100], the configuration [30, 60]"), or, when every value is there but a job is missing, the
-    first missing job. ``(0, 0, [])`` when ``df`` is exactly the configured study. ``df`` needs the key columns
-    only (:data:`KEY_COLUMNS`).
-    """
-    skipped = {(p, s, a, int(n)) for p, s, a, n in design.get("skipped", [])}
-    wanted = {
-        (p, s, a, m, int(n), int(k))
-        for p in design["protocols"]
-        for s, a in design["pairs"]
-        for m in design["methods"]
-        for n in design["n_train"]
-        for k in design["seeds"]
-        if (p, s, a, int(n)) not in skipped
-    }
-    have = {
-        (p, s, a, m, int(n), int(k))
-        for p, s, a, m, n, k in df[KEY_COLUMNS].itertuples(index=False, name=None)
-    }
-    if wanted == have:
-        return 0, 0, []
-    differ = []
-    for i, col in enumerate(KEY_COLUMNS):
-        got = sorted({r[i] for r in have})
-        conf = design_values(design, col)
-        if got != conf:
-            differ.append(f"{col}: the table has {got}, the configuration {conf}")
-    if not differ:
-        missing = sorted(wanted - have)
-        differ.append(f"e.g. no row for {dict(zip(KEY_COLUMNS, missing[0]))}" if missing else "")
-    return len(wanted - have), len(have - wanted), differ
-
-
-def study_of(path):
-    """The study name of an aggregate table at ``results/{study}/aggregate/results.csv``; None for another path."""
-    parts = Path(path).parts
-    if (
-        len(parts) >= 4
-        and parts[-4:-3] == ("results",)
-        and parts[-2:] == ("aggregate", "results.csv")
-    ):
-        return parts[-3]
-    return None
-
-
-def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
-    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
-
-    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
-    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``, and optionally ``skipped``:
-    [protocol, source, activity, n_train] cells not run because too few test frames remain). A table of another
-    configuration (say, one written before a method was added) must never be reported as this study's. The
-    message names what differs (:func:`design_changes`) and what to do.
-    """
-    missing, extra, differ = design_changes(df, design)
-    if not (missing or extra):
-        return
-    study = study_of(path)
-    name = f"study {study!r}" if study else "the study"
-    folder = f"results/{study}/" if study else "the study's results folder"
-    raise DataFileError(
-        path,
-        f"does not match the configuration: {missing} configured job(s) without a row, "
-        f"{extra} row(s) of jobs not configured; "
-        + "; ".join(differ)
-        + f". Expected exactly the configured study: the design of {name} has changed since the table was "
-        f"written. Run the study first, with the same --configfile/--config options (Snakemake reruns what "
-        f"changed; add --forcerun aggregate if it finds nothing to do); or give the new design a study name of its "
-        f"own (--config study=NAME) to keep the old results as they are; or delete {folder} to start afresh",
-    )
-
-
-def design_values(design, column):
-    """The configured values of one key column (sorted), from a :func:`check_design` design."""
-    if column == "source":
-        return sorted({s for s, _ in design["pairs"]})
-    if column == "activity":
-        return sorted({a for _, a in design["pairs"]})
-    key = {"protocol": "protocols", "method": "methods", "seed": "seeds"}.get(column, column)
-    return sorted(design[key])
 
 
 def read_paper_tables(path):

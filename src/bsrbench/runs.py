@@ -1,0 +1,353 @@
+"""The jobs of one split: CV, fit, MCMC chains and their pooling, scored into a result row.
+
+The paper's protocol ("A Bayesian Framework for Sparse Representation-Based 3D Human Pose Estimation",
+Section "Experimental Results"): error = mean over the 57 angles of the per-angle RMS (degrees), mean +- std
+over 10 random splits. Nothing here reads Snakemake objects or the configuration: the jobs pass plain values.
+"""
+
+import platform
+import time
+from dataclasses import dataclass
+from importlib import metadata
+
+import numpy as np
+
+from .convergence import convergence_summary
+from .errors import InputError
+from .estimators import make_estimator, supports_std
+from .io import to_builtin
+from .metrics import interval_coverage, mean_angle_error, per_angle_rms
+from .poses import HeadingTransform, get_pose_transform
+from .seeds import split_seed
+
+#: Nominal levels of the central predictive intervals whose empirical coverage every job records.
+COVERAGE_LEVELS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
+_VERSION_PACKAGES = ("bsrbench", "numpy", "scipy", "scikit-learn", "numba")
+
+
+@dataclass(frozen=True)
+class Split:
+    """A job's data on its split: features ``X``, angles ``Y``, ``train``/``test`` indices, pose transform."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    train: np.ndarray
+    test: np.ndarray
+    transform: object
+
+    def fit(self, estimator, params, random_state):
+        """The estimator at ``estimator`` with ``params``, fitted on the training frames; and the seconds."""
+        est = make_estimator(estimator, params, random_state=random_state)
+        t0 = time.perf_counter()
+        est.fit(self.X[self.train], self.transform.forward(self.Y[self.train]))
+        return est, time.perf_counter() - t0
+
+
+def prepare_split(spec, features):
+    """The :class:`Split` of ``spec`` on ``features`` (a :func:`bsrbench.io.load_features` dict)."""
+    X, Y = features["X"], features["Y"]
+    train, test = spec.split(X.shape[0], features.get("trials"))
+    transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
+    return Split(X, Y, train, test, transform)
+
+
+def inverse_std(transform, Z_mean, Z_std):
+    """Predictive std in the original angle space from the std in the transformed space.
+
+    The heading angle ``atan2(s, c)`` gets the first-order (delta-method) std
+    ``sqrt(c^2 sd_s^2 + s^2 sd_c^2) / (s^2 + c^2)`` in degrees; other columns are unchanged.
+    """
+    Z_mean = np.asarray(Z_mean, dtype=float)
+    Z_std = np.asarray(Z_std, dtype=float)
+    if not isinstance(transform, HeadingTransform):
+        return Z_std
+    s, c = Z_mean[:, -2], Z_mean[:, -1]
+    ss, sc = Z_std[:, -2], Z_std[:, -1]
+    r2 = np.maximum(s * s + c * c, 1e-12)
+    sd_heading = np.rad2deg(np.sqrt(c * c * ss * ss + s * s * sc * sc) / r2)
+    return np.insert(Z_std[:, :-2], transform.column, sd_heading, axis=1)
+
+
+def package_versions():
+    """Versions of the packages that determine the numbers (and the Python version)."""
+    out = {"python": platform.python_version()}
+    for name in _VERSION_PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_params=None):
+    """Choose hyper-parameters by ``folds``-fold CV on the training frames of ``spec``'s split.
+
+    ``cv_params`` replace entries of ``params`` in the CV fits only (e.g. fewer MCMC sweeps); the
+    returned ``best_params`` are ``params`` updated with the grid's choice.
+
+    Delegates to :func:`bsrbench.tuning.tune` (the grid search shared by all methods) with the pose
+    transform of the study. Returns a JSON-ready dict: best_params (merged over ``params``), best_score,
+    the CV table, and the seconds it took.
+    """
+    from .tuning import tune  # imported here: only CV jobs need it
+
+    split = prepare_split(spec, features)
+    X, Y, train = split.X, split.Y, split.train
+    grid = {k: list(v) for k, v in (grid or {}).items()}
+    est = make_estimator(
+        estimator, {**(params or {}), **(cv_params or {})}, random_state=spec.method_seed
+    )
+    t0 = time.perf_counter()
+    if grid:
+        res = tune(
+            est,
+            grid,
+            X[train],
+            Y[train],
+            cv=int(folds),
+            random_state=spec.method_seed,
+            pose_transform=split.transform,
+        )
+        best, score, n_fits = dict(res.best_params), res.best_score, res.n_fits
+        table = res.cv_results.drop(columns=["params"], errors="ignore").to_dict(orient="records")
+    else:
+        best, score, table, n_fits = {}, None, [], 0
+    seconds = time.perf_counter() - t0
+    chosen = dict(params or {})
+    chosen.update(best)
+    return to_builtin(
+        {
+            "source": spec.source,
+            "activity": spec.activity,
+            "method": spec.method,
+            "n_train": spec.n_train,
+            "cv_seed": spec.seed,
+            "protocol": spec.protocol,
+            "folds": int(folds),
+            "grid": grid,
+            "cv_params": dict(cv_params or {}),
+            "best_params": chosen,
+            "best_score": score,
+            "cv_results": table,
+            "n_fits": n_fits,
+            "cv_seconds": seconds,
+        }
+    )
+
+
+def trace_arrays(est):
+    """``{"trace_<name>": array}`` of the numeric per-sweep traces a fitted estimator saved in ``trace_`` (a
+    dict, e.g. :class:`bsrbench.models.bsr.BayesianSR`); empty for estimators without one."""
+    trace = getattr(est, "trace_", None)
+    if not isinstance(trace, dict):
+        return {}
+    out = {}
+    for key, value in trace.items():
+        a = np.asarray(value)
+        if a.dtype.kind in "biuf":
+            out[f"trace_{key}"] = a
+    return out
+
+
+def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=None):
+    """Fit ``estimator`` (dotted path) with ``params`` on the training frames of ``spec``'s split.
+
+    Returns ``(row, arrays)``: the tidy result row (JSON-ready dict) and the arrays to save
+    (test indices, true and predicted angles, predictive std if any, and the sampler trace if any).
+    """
+    split = prepare_split(spec, features)
+    est, fit_seconds = split.fit(estimator, params, spec.method_seed)
+    X_test = split.X[split.test]
+    t0 = time.perf_counter()
+    if supports_std(est):
+        Z_mean, Z_std = est.predict(X_test, return_std=True)
+    else:
+        Z_mean, Z_std = est.predict(X_test), None
+    predict_seconds = time.perf_counter() - t0
+    row, arrays = _score(
+        spec,
+        split,
+        estimator=estimator,
+        params=params,
+        cv_mode=cv_mode,
+        cv_seconds=cv_seconds,
+        Z_mean=Z_mean,
+        Z_std=Z_std,
+        fit_seconds=fit_seconds,
+        predict_seconds=predict_seconds,
+    )
+    arrays.update(trace_arrays(est))
+    return row, arrays
+
+
+def _score(
+    spec,
+    split,
+    *,
+    estimator,
+    params,
+    cv_mode,
+    cv_seconds,
+    Z_mean,
+    Z_std,
+    fit_seconds,
+    predict_seconds,
+):
+    """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
+    transformed pose space."""
+    test, transform = split.test, split.transform
+    Y_true = split.Y[test]
+    Z_mean = np.asarray(Z_mean, dtype=float)
+    if Z_mean.ndim != 2 or Z_mean.shape[0] != test.size:
+        raise InputError(
+            f"{spec.method}: predict returned shape {Z_mean.shape}; expected ({test.size}, n_outputs)"
+        )
+    Y_pred = transform.inverse(Z_mean)
+    rms = per_angle_rms(Y_true, Y_pred)
+    row = {
+        "source": spec.source,
+        "activity": spec.activity,
+        "paper_activity": spec.paper_activity or "",
+        "method": spec.method,
+        "n_train": int(spec.n_train),
+        "seed": int(spec.seed),
+        "protocol": spec.protocol,
+        "pose_transform": spec.pose_transform,
+        "cv": cv_mode,
+        "estimator": estimator,
+        "params": to_builtin(dict(params or {})),
+        "n_test": int(test.size),
+        "split_seed": split_seed(spec.source, spec.activity, spec.n_train, spec.seed),
+        "method_seed": spec.method_seed,
+        "error": mean_angle_error(Y_true, Y_pred),
+        "per_angle_rms": rms.tolist(),
+        "fit_seconds": fit_seconds,
+        "predict_seconds": predict_seconds,
+        "cv_seconds": cv_seconds,
+        "versions": package_versions(),
+    }
+    arrays = {"train": split.train, "test": test, "y_true": Y_true, "y_pred": Y_pred}
+    if Z_std is not None:
+        Y_std = inverse_std(transform, Z_mean, np.asarray(Z_std, dtype=float))
+        for level in COVERAGE_LEVELS:
+            row[f"coverage_{int(round(level * 100))}"] = interval_coverage(
+                Y_true, Y_pred, Y_std, level=level
+            )
+        row["coverage"] = row["coverage_90"]
+        arrays["y_std"] = Y_std
+    else:
+        row["coverage"] = None
+    return to_builtin(row), arrays
+
+
+# --------------------------------------------------------------------------------------------- MCMC chains
+def chain_seed(method_seed, chain):
+    """Sampler seed of chain ``chain`` (0, 1, ...) of a split: ``(method_seed + chain) mod 2**32``.
+
+    Chain 0 uses the method seed itself, so a one-chain run is the first chain of a several-chain run. The
+    estimator turns this seed into its generators' seeds (BayesianSR: ``RandomState(seed)`` draws the seed of
+    a PCG64 generator through NumPy's SeedSequence hashing), so neighbouring seeds give unrelated streams.
+    """
+    return (int(method_seed) + int(chain)) % 2**32
+
+
+def run_chain(spec, features, *, estimator, params, chain):
+    """One MCMC chain of ``spec``'s split: fit with :func:`chain_seed`, predict the test frames.
+
+    Returns a dict of arrays (the chain file): ``train``, ``test``, ``z_mean`` and ``z_var`` (predictive mean
+    and variance per test frame in the transformed pose space; ``z_var`` is absent if the estimator gives no
+    std), ``trace_<name>`` (per-sweep traces), ``draw_error`` (test error in degrees of each retained
+    posterior sample, when the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs),
+    weights)`` in the units of the fitted Y), ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
+    ``predict_seconds``.
+    """
+    split = prepare_split(spec, features)
+    test, X_test = split.test, split.X[split.test]
+    seed = chain_seed(spec.method_seed, chain)
+    est, fit_seconds = split.fit(estimator, params, seed)
+    t0 = time.perf_counter()
+    out = {"train": split.train, "test": test}
+    if supports_std(est):
+        z_mean, z_std = est.predict(X_test, return_std=True)
+        out["z_var"] = np.square(np.asarray(z_std, dtype=float))
+    else:
+        z_mean = est.predict(X_test)
+    out["z_mean"] = np.asarray(z_mean, dtype=float)
+    if hasattr(est, "predict_draws"):
+        draws = np.asarray(est.predict_draws(X_test)[0], dtype=float)
+        if draws.ndim != 3 or draws.shape[0] != test.size:
+            raise InputError(
+                f"{spec.method}: predict_draws returned draws of shape {draws.shape}; expected "
+                f"({test.size}, n_samples, n_outputs)"
+            )
+        out["draw_error"] = np.array(
+            [
+                mean_angle_error(split.Y[test], split.transform.inverse(draws[:, i, :]))
+                for i in range(draws.shape[1])
+            ]
+        )
+    predict_seconds = time.perf_counter() - t0
+    out.update(trace_arrays(est))
+    out.update(
+        chain=np.int64(chain),
+        seed=np.int64(seed),
+        n_burn_in=np.int64(getattr(est, "n_burn_in", 0) or 0),
+        fit_seconds=np.float64(fit_seconds),
+        predict_seconds=np.float64(predict_seconds),
+    )
+    return out
+
+
+def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv_seconds=None):
+    """The result of a split from its MCMC chains (dicts of :func:`run_chain`, same split, one per chain).
+
+    The prediction is the posterior predictive mean over the retained samples of all chains, each chain
+    weighted equally (every chain keeps the same number of samples); the predictive variance is the mixture's,
+    ``mean_c(var_c + mean_c^2) - mean^2``. The row is :func:`run_job`'s plus ``n_chains``, ``chain_seeds`` and
+    the :func:`bsrbench.convergence.convergence_summary`; ``fit_seconds`` and ``predict_seconds`` are summed
+    over chains. The arrays are :func:`run_job`'s plus ``chain_trace_<name>`` (chains, sweeps) and
+    ``chain_draw_error`` (chains, samples).
+    """
+    if not chains:
+        raise InputError(f"{spec.method}: no chains to pool")
+    split = prepare_split(spec, features)
+    for c in chains:
+        if not (np.array_equal(c["train"], split.train) and np.array_equal(c["test"], split.test)):
+            raise InputError(
+                f"{spec}: chain {int(c['chain'])} was run on another split (stale chain file?)"
+            )
+    means = np.stack([np.asarray(c["z_mean"], dtype=float) for c in chains])
+    z_mean = means.mean(axis=0)
+    z_std = None
+    if all("z_var" in c for c in chains):
+        variances = np.stack([np.asarray(c["z_var"], dtype=float) for c in chains])
+        second = np.mean(variances + means**2, axis=0)
+        z_std = np.sqrt(np.maximum(second - z_mean**2, 0.0))
+    row, arrays = _score(
+        spec,
+        split,
+        estimator=estimator,
+        params=params,
+        cv_mode=cv_mode,
+        cv_seconds=cv_seconds,
+        Z_mean=z_mean,
+        Z_std=z_std,
+        fit_seconds=float(sum(float(c["fit_seconds"]) for c in chains)),
+        predict_seconds=float(sum(float(c["predict_seconds"]) for c in chains)),
+    )
+    row["n_chains"] = len(chains)
+    row["chain_seeds"] = [int(c["seed"]) for c in chains]
+    row.update(to_builtin(convergence_summary(chains)))
+    names = sorted({k for c in chains for k in c if k.startswith("trace_")})
+    for k in names:
+        if all(k in c for c in chains):
+            arrs = [np.asarray(c[k]) for c in chains]
+            n = min(a.shape[0] for a in arrs)
+            arrays[f"chain_{k}"] = np.stack([a[:n] for a in arrs])
+    if all("draw_error" in c for c in chains):
+        n = min(np.size(c["draw_error"]) for c in chains)
+        arrays["chain_draw_error"] = np.stack(
+            [np.asarray(c["draw_error"], dtype=float)[:n] for c in chains]
+        )
+    arrays["n_burn_in"] = np.int64(min(int(c.get("n_burn_in", 0)) for c in chains))
+    return row, arrays
