@@ -412,14 +412,38 @@ def test_todays_baselines_reject_row_mismatch_and_nan(make):
 @pytest.mark.parametrize(
     "est, match",
     [
-        (KernelRidgeRBF(alpha=0.0), r"alpha must be .* \(0, inf\]; got 0.0"),
-        (KernelRidgeRBF(gamma_scale=-1), r"gamma_scale must be .*; got -1"),
-        (KernelRidgeRBF(input_scaling="std"), r"input_scaling must be one of .*; got 'std'"),
-        (GaussianProcessARD(n_restarts_optimizer=-1), r"n_restarts_optimizer must be .*; got -1"),
-        (RandomForest(max_features=2.0), r"max_features must be .* \(0, 1\]; got 2.0"),
-        (RandomForest(min_samples_leaf=0), r"min_samples_leaf must be an integer .*; got 0"),
-        (MLP(hidden_units=0), r"hidden_units must be an integer .*; got 0"),
-        (MLP(validation_fraction=1.0), r"validation_fraction must be in \(0, 1\); got 1.0"),
+        (
+            KernelRidgeRBF(alpha=0.0),
+            r"The 'alpha' parameter of KernelRidgeRBF must be a float in the range \(0\.0, inf\)\. Got 0\.0",
+        ),
+        (
+            KernelRidgeRBF(gamma_scale=-1),
+            r"The 'gamma_scale' parameter of KernelRidgeRBF must be .*Got -1 instead",
+        ),
+        (
+            KernelRidgeRBF(input_scaling="std"),
+            r"The 'input_scaling' parameter of KernelRidgeRBF must be a str among .*Got 'std'",
+        ),
+        (
+            GaussianProcessARD(n_restarts_optimizer=-1),
+            r"The 'n_restarts_optimizer' parameter of GaussianProcessARD must be an int in the range \[0, inf\)\. Got -1",
+        ),
+        (
+            RandomForest(max_features=2.0),
+            r"The 'max_features' parameter of RandomForest must be a float in the range \(0\.0, 1\.0\]\. Got 2\.0",
+        ),
+        (
+            RandomForest(min_samples_leaf=0),
+            r"The 'min_samples_leaf' parameter of RandomForest must be an int in the range \[1, inf\)\. Got 0",
+        ),
+        (
+            MLP(hidden_units=0),
+            r"The 'hidden_units' parameter of MLP must be an int in the range \[1, inf\)\. Got 0",
+        ),
+        (
+            MLP(validation_fraction=1.0),
+            r"The 'validation_fraction' parameter of MLP must be a float in the range \(0\.0, 1\.0\)\. Got 1\.0",
+        ),
         (
             MLP(validation_fraction=0.1),
             r"validation_fraction=0.1 of n_samples = 12 leaves fewer than 2",

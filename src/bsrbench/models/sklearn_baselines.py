@@ -20,6 +20,7 @@ The thin wrappers add what the study relies on and the scikit-learn estimators l
 """
 
 from functools import partial
+from numbers import Integral, Real
 
 import numpy as np
 from scipy.optimize import minimize
@@ -30,17 +31,21 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.kernel_ridge import KernelRidge
 from sklearn.neural_network import MLPRegressor
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import Interval, StrOptions
 
 from ..errors import InputError
 from .reference import (
-    _check_number,
+    COUNT,
+    NON_NEGATIVE,
+    POSITIVE,
     _format_output,
     _median_distance,
     _regressor_tags,
     _validate_fit,
     _validate_predict,
+    check_params,
 )
-from .scaling import InputScaler, check_input_scaling
+from .scaling import INPUT_SCALINGS, InputScaler
 
 
 class _ScaledRegressor(RegressorMixin, BaseEstimator):
@@ -90,6 +95,12 @@ class KernelRidgeRBF(_ScaledRegressor):
     Outputs are centred on their training mean before the fit (the kernel ridge has no intercept).
     """
 
+    _parameter_constraints = {
+        "alpha": [POSITIVE],
+        "gamma_scale": [POSITIVE],
+        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+    }
+
     def __init__(self, alpha=1.0, gamma_scale=1.0, input_scaling="pooled"):
         self.alpha = alpha
         self.gamma_scale = gamma_scale
@@ -97,9 +108,7 @@ class KernelRidgeRBF(_ScaledRegressor):
 
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        _check_number("alpha", self.alpha, low=0, low_open=True)
-        _check_number("gamma_scale", self.gamma_scale, low=0, low_open=True)
-        check_input_scaling(self.input_scaling)
+        check_params(self)
 
     def _make(self, Xs, Y):
         self.gamma_ = float(self.gamma_scale) / _median_distance(Xs) ** 2
@@ -145,6 +154,14 @@ class GaussianProcessARD(_ScaledRegressor):
         Seed of the restarts.
     """
 
+    _parameter_constraints = {
+        "optimizer_max_iter": [COUNT],
+        "n_restarts_optimizer": [Interval(Integral, 0, None, closed="left")],
+        "noise_level": [POSITIVE],
+        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+        "random_state": ["random_state"],
+    }
+
     def __init__(
         self,
         optimizer_max_iter=50,
@@ -161,10 +178,7 @@ class GaussianProcessARD(_ScaledRegressor):
 
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        _check_number("optimizer_max_iter", self.optimizer_max_iter, low=1, integer=True)
-        _check_number("n_restarts_optimizer", self.n_restarts_optimizer, low=0, integer=True)
-        _check_number("noise_level", self.noise_level, low=0, low_open=True)
-        check_input_scaling(self.input_scaling)
+        check_params(self)
 
     def _make(self, Xs, Y):
         m = _median_distance(Xs)
@@ -208,6 +222,13 @@ class RandomForest(_ScaledRegressor):
 
     input_scaling = "none"
 
+    _parameter_constraints = {
+        "n_estimators": [COUNT],
+        "max_features": [Interval(Real, 0, 1, closed="right")],
+        "min_samples_leaf": [COUNT],
+        "random_state": ["random_state"],
+    }
+
     def __init__(self, n_estimators=100, max_features=1.0, min_samples_leaf=1, random_state=None):
         self.n_estimators = n_estimators
         self.max_features = max_features
@@ -216,9 +237,7 @@ class RandomForest(_ScaledRegressor):
 
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        _check_number("n_estimators", self.n_estimators, low=1, integer=True)
-        _check_number("max_features", self.max_features, low=0, high=1, low_open=True)
-        _check_number("min_samples_leaf", self.min_samples_leaf, low=1, integer=True)
+        check_params(self)
 
     def _make(self, Xs, Y):
         return RandomForestRegressor(
@@ -257,6 +276,18 @@ class MLP(_ScaledRegressor):
 
     _standardize_y = True
 
+    _parameter_constraints = {
+        "hidden_units": [COUNT],
+        "alpha": [NON_NEGATIVE],
+        "learning_rate_init": [POSITIVE],
+        "max_iter": [COUNT],
+        "validation_fraction": [Interval(Real, 0, 1, closed="neither")],
+        "batch_size": [COUNT],
+        "n_iter_no_change": [COUNT],
+        "input_scaling": [StrOptions(set(INPUT_SCALINGS))],
+        "random_state": ["random_state"],
+    }
+
     def __init__(
         self,
         hidden_units=64,
@@ -281,18 +312,7 @@ class MLP(_ScaledRegressor):
 
     def _check_params(self, n_samples=None):
         """Validate the hyper-parameters (and that ``n_samples`` leave 2 validation rows); raises InputError."""
-        _check_number("hidden_units", self.hidden_units, low=1, integer=True)
-        _check_number("alpha", self.alpha, low=0)
-        _check_number("learning_rate_init", self.learning_rate_init, low=0, low_open=True)
-        _check_number("max_iter", self.max_iter, low=1, integer=True)
-        _check_number("validation_fraction", self.validation_fraction, low=0, high=1, low_open=True)
-        _check_number("batch_size", self.batch_size, low=1, integer=True)
-        _check_number("n_iter_no_change", self.n_iter_no_change, low=1, integer=True)
-        if self.validation_fraction >= 1:
-            raise InputError(
-                f"validation_fraction must be in (0, 1); got {self.validation_fraction!r}"
-            )
-        check_input_scaling(self.input_scaling)
+        check_params(self)
         if n_samples is not None and int(self.validation_fraction * n_samples) < 2:
             raise InputError(
                 f"MLP: validation_fraction={self.validation_fraction} of n_samples = {n_samples} leaves "
