@@ -21,7 +21,8 @@ import pytest
 
 from bsrbench import cluster, jobserver
 
-pytestmark = [
+# The cluster tests; the checks of bsrbench.cluster's rules below them run in the ordinary suite.
+on_cluster = [
     pytest.mark.slurm,
     pytest.mark.skipif(os.geteuid() != 0, reason="bin/slurm-local runs the SLURM daemons as root"),
 ]
@@ -144,6 +145,8 @@ def local_run(tmp_path_factory):
     return tables(work), jobs
 
 
+@on_cluster[0]
+@on_cluster[1]
 def test_sacct_on_a_cluster_without_accounting_stops_before_any_job(tmp_path):
     work = copy_tree(tmp_path)
     with slurm_cluster():
@@ -166,6 +169,8 @@ def test_sacct_on_a_cluster_without_accounting_stops_before_any_job(tmp_path):
             cluster.check_cluster("squeue", 5, ["gpu"])
 
 
+@on_cluster[0]
+@on_cluster[1]
 def test_squeue_run_without_accounting_retries_a_cancelled_fit(tmp_path, local_run):
     """Status by squeue; a fit job scancelled while it runs is resubmitted (the profile's retries) and the run
     completes by itself with the local run's tables."""
@@ -218,6 +223,8 @@ def incomplete_outputs(work):
     return {base64.urlsafe_b64decode(n).decode() for n in names if n != "migration_underway"}
 
 
+@on_cluster[0]
+@on_cluster[1]
 def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jobs(
     tmp_path, local_run
 ):
@@ -271,3 +278,73 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
         assert len(rerun) == len(missing) and all(s == "COMPLETED" for *_, s in rerun)
     assert tables(work) == local_tables
     assert_no_job_server(work)
+
+
+# ------------------------------------------------------------------ bsrbench.cluster's rules, without a cluster
+# `scontrol show config` of slurm-wlm 22.05 (excerpt; a cluster without accounting).
+SCONTROL = """Configuration data as of 2026-12-01T21:00:00
+AccountingStorageBackupHost = (null)
+AccountingStorageType   = accounting_storage/none
+MinJobAge               = 300 sec
+SLURM_VERSION           = 22.05.8
+"""
+
+
+def test_scontrol_config_is_read():
+    config = cluster.parse_config(SCONTROL)
+    assert config["AccountingStorageType"] == "accounting_storage/none"
+    assert config["MinJobAge"] == "300 sec" and config["SLURM_VERSION"] == "22.05.8"
+    assert "Configuration data as of 2026-12-01T21" not in config
+    assert [cluster.seconds(v) for v in ("300 sec", "300", "2h", "5 min", "soon")] == [
+        300,
+        300,
+        7200,
+        300,
+        None,
+    ]
+
+
+@pytest.mark.parametrize(
+    "command, storage, age, init, ok",
+    [
+        (
+            "sacct",
+            "accounting_storage/slurmdbd",
+            "2 sec",
+            40,
+            True,
+        ),  # sacct does not need MinJobAge
+        ("sacct", "accounting_storage/none", "300 sec", 40, False),
+        ("squeue", "accounting_storage/none", "300 sec", 40, True),
+        ("squeue", "accounting_storage/none", "240 sec", 40, True),  # 180 s pause + 60 s margin
+        ("squeue", "accounting_storage/none", "239 sec", 40, False),
+        (
+            "squeue",
+            "accounting_storage/slurmdbd",
+            "300 sec",
+            100,
+            False,
+        ),  # plugin would switch to sacct
+        (
+            "squeue",
+            "accounting_storage/none",
+            "300 sec",
+            100,
+            True,
+        ),  # nothing to switch to: 3 x 100 = 300
+        ("qstat", "accounting_storage/slurmdbd", "300 sec", 40, False),
+    ],
+)
+def test_status_command_rules(command, storage, age, init, ok):
+    config = {"AccountingStorageType": storage, "MinJobAge": age}
+    problem = cluster.status_problem(command, config, init)
+    assert (problem is None) == ok, problem
+
+
+def test_the_messages_say_what_to_set():
+    no_accounting = cluster.parse_config(SCONTROL)
+    assert "--slurm-status-command squeue" in cluster.status_problem("sacct", no_accounting)
+    short = dict(no_accounting, MinJobAge="30 sec")
+    assert "raise MinJobAge" in cluster.status_problem("squeue", short)
+    short_acct = dict(short, AccountingStorageType="accounting_storage/slurmdbd")
+    assert "--slurm-status-command sacct" in cluster.status_problem("squeue", short_acct)
