@@ -318,20 +318,10 @@ def test_scontrol_config_is_read():
         ("squeue", "accounting_storage/none", "300 sec", 40, True),
         ("squeue", "accounting_storage/none", "240 sec", 40, True),  # 180 s pause + 60 s margin
         ("squeue", "accounting_storage/none", "239 sec", 40, False),
-        (
-            "squeue",
-            "accounting_storage/slurmdbd",
-            "300 sec",
-            100,
-            False,
-        ),  # plugin would switch to sacct
-        (
-            "squeue",
-            "accounting_storage/none",
-            "300 sec",
-            100,
-            True,
-        ),  # nothing to switch to: 3 x 100 = 300
+        # under 3 x 100 s the plugin switches to sacct
+        ("squeue", "accounting_storage/slurmdbd", "299 sec", 100, False),
+        # nothing to switch to: 3 x 100 = 300
+        ("squeue", "accounting_storage/none", "300 sec", 100, True),
         ("qstat", "accounting_storage/slurmdbd", "300 sec", 40, False),
     ],
 )
