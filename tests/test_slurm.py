@@ -130,7 +130,7 @@ def assert_no_job_server(work):
             args = cmdline.read_bytes().split(b"\0")
         except OSError:
             continue
-        assert not (b"bsrbench.jobserver" in args and b"job" not in args), args
+        assert str(sock).encode() not in args, args  # a server of this working directory
 
 
 @pytest.fixture(scope="module")
@@ -277,6 +277,45 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
         assert {(r, w) for _, r, w, _ in rerun} == missing
         assert len(rerun) == len(missing) and all(s == "COMPLETED" for *_, s in rerun)
     assert tables(work) == local_tables
+    assert_no_job_server(work)
+
+
+@on_cluster[0]
+@on_cluster[1]
+def test_a_status_query_that_keeps_failing_ends_the_run(tmp_path):
+    """slurmdbd stopped after the jobs are submitted: every sacct query fails, and the run ends by itself
+    (bsrbench.cluster.guard_status_queries) with a message naming the jobs, instead of waiting forever."""
+    work = copy_tree(tmp_path)
+    log = work / "run.log"
+    with slurm_cluster("--accounting"):
+        with open(log, "w") as fh:
+            proc = subprocess.Popen(
+                [SNAKEMAKE, TARGET, *SLURM_ARGS, "--slurm-status-command", "sacct", *STUDY],
+                cwd=work, stdout=fh, stderr=subprocess.STDOUT, env=env(),
+            )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 120
+            while (
+                "Job 0 has been submitted" not in log.read_text()
+                and "SLURM jobid" not in log.read_text()
+            ):
+                assert time.monotonic() < deadline and proc.poll() is None, log.read_text()[-3000:]
+                time.sleep(0.5)
+            dbd = int((Path("/tmp/bsrbench-slurm/run/slurmdbd.pid")).read_text())
+            os.kill(dbd, signal.SIGTERM)
+            start = time.monotonic()
+            rc = proc.wait(timeout=400)
+            print(
+                f"run ended {time.monotonic() - start:.0f} s after slurmdbd stopped, exit code {rc}"
+            )
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        out = log.read_text()
+        assert rc != 0
+        assert "the SLURM status query (sacct) failed in 3 status checks in a row" in out, out[
+            -3000:
+        ]
     assert_no_job_server(work)
 
 

@@ -171,3 +171,47 @@ def check_cluster(status_command, init_seconds=40, partitions=()):
             "this cluster has no default partition and no slurm_partition is set; set one with "
             f"--default-resources slurm_partition=<name> (sinfo lists: {', '.join(sorted(names)) or 'none'})."
         )
+
+
+#: Status checks in a row whose every query failed, after which the run stops (see guard_status_queries).
+MAX_FAILED_CHECKS = 3
+
+
+def guard_status_queries(executor_class, max_failed=MAX_FAILED_CHECKS):
+    """Make ``executor_class`` (snakemake-executor-plugin-slurm 2.8.0's Executor) stop the run when its status
+    query keeps failing, instead of waiting forever.
+
+    When every attempt of a status check fails, the plugin reports none of the active jobs and yields none of
+    them back, so Snakemake forgets them and waits. The wrapped check yields them back (the next check tries
+    again) and, after ``max_failed`` such checks in a row, raises :class:`ClusterError`, which ends the run
+    (Snakemake's scheduler raises an executor's error). The failures are read from the plugin's own counters
+    of successful and failed queries."""
+    original = executor_class.check_active_jobs
+    if getattr(original, "guarded", False):
+        return
+
+    async def check_active_jobs(self, active_jobs):
+        calls, failures = self._status_query_calls, self._status_query_failures
+        async for job in original(self, active_jobs):
+            yield job
+        if (
+            not active_jobs
+            or self._status_query_calls > calls
+            or self._status_query_failures == failures
+        ):
+            self._failed_status_checks = 0
+            return
+        self._failed_status_checks = getattr(self, "_failed_status_checks", 0) + 1
+        if self._failed_status_checks >= max_failed:
+            ids = ", ".join(sorted(str(j.external_jobid) for j in active_jobs))
+            raise ClusterError(
+                f"the SLURM status query ({self.get_status_command()}) failed in {max_failed} status checks in "
+                f"a row, so the run stops instead of waiting for jobs it cannot see (run with --verbose for "
+                f"SLURM's message). Jobs still submitted: {ids}; scancel them or let them end, then rerun "
+                "(after `snakemake --unlock` if needed)."
+            )
+        for job in active_jobs:
+            yield job
+
+    check_active_jobs.guarded = True
+    executor_class.check_active_jobs = check_active_jobs
