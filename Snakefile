@@ -37,6 +37,24 @@ include: "workflow/rules/report.smk"
 os.environ.setdefault(jobserver.OWNER_VAR, str(os.getpid()))
 
 
+# Under the SLURM executor: a cluster whose status command cannot follow the jobs stops the run here, before any
+# job is submitted, with what to set; a status query that keeps failing later ends the run (bsrbench.cluster).
+from bsrbench import cluster
+
+
+onstart:
+    if workflow.executor_plugin.name == "slurm":
+        cluster.guard_status_queries(workflow.executor_plugin.executor)
+        jobs = [j for j in workflow.dag.needrun_jobs() if not j.is_local]
+        if jobs:
+            s = workflow.executor_settings
+            cluster.check_cluster(
+                s.status_command,
+                s.init_seconds_before_status_checks,
+                [j.resources.get("slurm_partition") for j in jobs],
+            )
+
+
 onsuccess:
     jobserver.shutdown()
 
