@@ -140,13 +140,13 @@ def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_
     pub = pd.read_csv(dest)
     assert len(pub) == 5 and "r_hat_test_error" in pub.columns
     readme = tmp_path / "README.md"
-    readme.write_text("intro\n<!-- results-table:hsc -->\nold\n<!-- /results-table:hsc -->\nend\n")
+    readme.write_text("intro\n<!-- results-table:hsc -->\nSTALE TABLE\n<!-- /results-table:hsc -->\nend\n")
     # the README shows the paper protocol's tables: another study's table does not replace them (it did, silently)
     assert (
         published_main(["readme", str(dest), "--protocol", "contiguous", "--update", str(readme)])
         == 2
     )
-    assert "old" in readme.read_text()
+    assert "STALE TABLE" in readme.read_text()
     as_paper = (
         tmp_path / "published" / "paper.csv"
     )  # the mechanics, on this table as if it were the paper's
@@ -159,7 +159,7 @@ def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_
     )
     assert published_main(["readme", str(as_paper), "--update", str(readme)]) == 0
     text = readme.read_text()
-    assert "old" not in text and text.startswith("intro\n") and text.endswith("end\n")
+    assert "STALE TABLE" not in text and text.startswith("intro\n") and text.endswith("end\n")
     row = next(ln for ln in text.splitlines() if ln.startswith("| golf | 30 |"))
     errors = pub.set_index("method")["error"]
     best = errors.idxmin()
