@@ -12,6 +12,7 @@ imported under another name, so both numba kernels live side by side (their cach
 Run from the repository root:
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1        # the commit before issue 12's blocked code update
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
+    .venv/bin/python benchmarks/bench_bsr_ab.py ef1133b --table   # default, single-site and MH in one table
 """
 
 import os
@@ -37,6 +38,7 @@ import bench_bsr as bb
 from bsrbench.models import _bsr_kernels as new
 
 DEFAULT_SIZES = ("30x64", "30x128", "60x64", "60x128", "100x196", "200x256")
+VARIANT_SIZES = ("30x64", "60x128", "200x256")
 
 
 def old_kernels(rev, workdir):
@@ -129,23 +131,43 @@ def main(argv=None):
         default=10,
         help="Gibbs sweeps per batch (default: %(default)s)",
     )
+    ap.add_argument(
+        "--table",
+        action="store_true",
+        help="one table of the default sweep at --sizes and the single-site and MH variants at "
+        f"{' '.join(VARIANT_SIZES)} (ignores --w-update and --atom-update)",
+    )
     args = ap.parse_args(argv)
+    if args.table:
+        runs = [("ess", "block", args.sizes)] + [
+            (w, a, [size_cell(c) for c in VARIANT_SIZES])
+            for w, a in (("ess", "single"), ("mh", "block"), ("mh", "single"))
+        ]
+    else:
+        runs = [(args.w_update, args.atom_update, args.sizes)]
     with tempfile.TemporaryDirectory() as tmp:
         old = old_kernels(args.rev, tmp)
         print(
-            f"sweep ({args.w_update} logits, {args.atom_update} atoms), {args.rev} against this checkout, "
-            f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
-            f"load average at the start {os.getloadavg()[0]:.1f}\n"
+            f"{args.rev} against this checkout, interleaved: {args.batches} batches x {args.per_batch} "
+            f"sweeps each, medians of thread CPU time; load average at the start "
+            f"{os.getloadavg()[0]:.1f}\n"
         )
         print(
-            f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|"
+            f"| logits | atoms | N | K | {args.rev} ms | this checkout ms | speed-up |\n"
+            "|---|---|---:|---:|---:|---:|---:|"
         )
-        for N, K in args.sizes:
-            state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
-            fo = sweeper(old, state, data, hyper, args.w_update, args.atom_update)
-            fn = sweeper(new, state, data, hyper, args.w_update, args.atom_update)
-            to, tn = interleaved(fo, fn, args.batches, args.per_batch)
-            print(f"| {N} | {K} | {1e3 * to:.3f} | {1e3 * tn:.3f} | {to / tn:.2f}x |", flush=True)
+        for w_update, atom_update, sizes in runs:
+            for N, K in sizes:
+                state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
+                fo = sweeper(old, state, data, hyper, w_update, atom_update)
+                fn = sweeper(new, state, data, hyper, w_update, atom_update)
+                to, tn = interleaved(fo, fn, args.batches, args.per_batch)
+                print(
+                    f"| {w_update} | {atom_update} | {N} | {K} | {1e3 * to:.3f} | {1e3 * tn:.3f} | "
+                    f"{to / tn:.2f}x |",
+                    flush=True,
+                )
+        print(f"\nload average at the end {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

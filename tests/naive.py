@@ -52,9 +52,11 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
     written with the weighted inner products (no rescaling); same draw order as update_codes."""
     N, K = B.shape
     c = np.where(np.arange(D.shape[1]) < Mx, g_nx, g_ny)  # noise precision per row of v
+    U_all = rng.random((K, N))
+    Z_all = rng.standard_normal((K, N))
     for i in range(N):
-        U = rng.random(K)
-        Zn = rng.standard_normal(K)
+        U = U_all[:, i]
+        Zn = Z_all[:, i]
         for k in range(K):
             d = D[k]
             a_old = S[i, k] * B[i, k]

@@ -385,6 +385,34 @@ def _transpose_into(src, dst):
 
 
 @njit(cache=True)
+def _codes_into_t(B, S, At):
+    """At[k, i] = B[i, k] S[i, k] (atom-major codes from the point-major state), tile by tile."""
+    N, K = S.shape
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for k in range(k0, k1):
+                for i in range(i0, i1):
+                    At[k, i] = S[i, k] * B[i, k]  # branch-free: b is 0 or 1
+
+
+@njit(cache=True)
+def _store_codes_from_t(Bt, St, B, S):
+    """S[i, k] = St[k, i] and B[i, k] = (Bt[k, i] != 0) (the atom-major results back into the state), tile by
+    tile."""
+    N, K = S.shape
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for i in range(i0, i1):
+                for k in range(k0, k1):
+                    S[i, k] = St[k, i]
+                    B[i, k] = 1 if Bt[k, i] != 0.0 else 0
+
+
+@njit(cache=True)
 def _code_randoms(rng, N, K, Ut, Zt):
     """The code update's random numbers in their documented order, atom-major: K x N uniforms (atom 1's for
     points 1..N, then atom 2's, ...), then K x N standard normals in the same order, as ``Ut[k, i]``,
@@ -474,7 +502,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     Zt = np.empty((K, N))
     _code_randoms(rng, N, K, Ut, Zt)
     At = np.empty((K, N))
-    _transpose_into(_codes_from(B, S), At)
+    _codes_into_t(B, S, At)
     Wt = np.empty((K, N))
     _transpose_into(W, Wt)
     Bt = np.empty((K, N))
@@ -492,12 +520,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
         )
         R += Dt[:nb].T @ Db
-    _transpose_into(St, S)
-    Bf = np.empty((N, K))
-    _transpose_into(Bt, Bf)
-    for i in range(N):
-        for k in range(K):
-            B[i, k] = 1 if Bf[i, k] != 0.0 else 0
+    _store_codes_from_t(Bt, St, B, S)
 
 
 @njit(cache=True)
@@ -562,6 +585,13 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
         _randn_fill(bg, E2)
         H = np.empty((N, N))
         _syrk_gram(A, H, False)  # A A^T (code layout: A is N x K)
+        U = np.empty((K, M))  # u = E1 / sqrt(g), both dictionaries side by side
+        sx, sy = 1.0 / np.sqrt(g_x), 1.0 / np.sqrt(g_y)
+        for k in range(K):
+            for m in range(M):
+                U[k, m] = E[k, m] * (sx if m < Mx else sy)
+        Au = A @ U
+        Wr = np.empty((N, M))
         for part in range(2):
             if part == 0:
                 lo, hi, g, gn = 0, Mx, g_x, g_xy
@@ -574,23 +604,24 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
             for i in range(N):
                 Mm[i, i] += 1.0
             _cholesky_lower(Mm)
-            U = np.ascontiguousarray(E[:, lo:hi]) * (1.0 / np.sqrt(g))
-            Au = A @ U
-            Wr = np.empty((N, hi - lo))
+            Wp = np.empty((N, hi - lo))
             for i in range(N):
                 for m in range(hi - lo):
-                    Wr[i, m] = c * (V[i, lo + m] - Au[i, m]) - E2[i, lo + m]
-            _tri_solve(Mm, Wr, False)
-            _tri_solve(Mm, Wr, True)
-            Dp = A.T @ Wr
-            Hw = H @ Wr
-            f = c / g
-            for k in range(K):
-                for m in range(hi - lo):
-                    D[k, lo + m] = U[k, m] + f * Dp[k, m]
+                    Wp[i, m] = c * (V[i, lo + m] - Au[i, m + lo]) - E2[i, lo + m]
+            _tri_solve(Mm, Wp, False)
+            _tri_solve(Mm, Wp, True)
+            f = c / g  # D^T = u + Phi^T w / g = u + (c / g) A^T w
             for i in range(N):
                 for m in range(hi - lo):
-                    R[i, lo + m] = V[i, lo + m] - Au[i, m] - f * Hw[i, m]
+                    Wr[i, lo + m] = f * Wp[i, m]
+        Dp = A.T @ Wr
+        Hw = H @ Wr
+        for k in range(K):
+            for m in range(M):
+                D[k, m] = U[k, m] + Dp[k, m]
+        for i in range(N):
+            for m in range(M):
+                R[i, m] = V[i, m] - Au[i, m] - Hw[i, m]
         _row_norms(D, norms)
         return
     G = np.empty((K, K))
