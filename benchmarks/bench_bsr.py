@@ -254,11 +254,11 @@ def main(argv=None):
             *(
                 (
                     1.0 * N * N * K + 4.0 * N * K * M + 2.0 * N**3 / 3 + 4.0 * N * N * M,
-                    "N x N form (N < K): N^2 K (syrk A A^T) + 4NKM (A u, A^T w) + 2 N^3/3 (two "
+                    "N x N form: N^2 K (syrk A A^T) + 4NKM (A u, A^T w) + 2 N^3/3 (two "
                     "Cholesky) + 4 N^2 M (solves, residual H w)",
                     (N, K, M),
                 )
-                if N < K
+                if kern._small_form_cheaper(N, K, M)
                 else (
                     1.0 * N * K * K + 4.0 * N * K * M + 2.0 * K**3 / 3 + 2.0 * K * K * M,
                     "NK^2 (syrk A^T A) + 4NKM (A^T V, residual) + 2 K^3/3 (two Cholesky) + "

@@ -554,6 +554,18 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
 
 
 @njit(cache=True)
+def _small_form_cheaper(N, K, M):
+    """Whether the N x N form of the block atom draw needs fewer flops than the K x K form (N < K by enough):
+    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, solves and residual) against
+    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both."""
+    n, k, m = float(N), float(K), float(M)
+    return (
+        n * n * k + 2.0 * n**3 / 3.0 + 4.0 * n * n * m
+        < n * k * k + 2.0 * k**3 / 3.0 + 2.0 * k * k * m
+    )
+
+
+@njit(cache=True)
 def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     """Draw all atoms given the codes, then recompute the residual.
 
@@ -561,9 +573,9 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     ``P = g_x I + g_xy A A^T`` (A = codes, K x N) and mean ``P^-1 g_xy A X^T``; likewise D^y with g_y. Two
     exact ways to draw them (docs/model.md, section "Atoms"):
 
-    - N >= K: ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with ``P = U^T U`` (one K x K Cholesky per dictionary).
+    - ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with ``P = U^T U`` (one K x K Cholesky per dictionary).
       Draw order: one (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y).
-    - N < K: the N x N (Woodbury) form of Bhattacharya, Chakraborty & Mallick (Biometrika 103(4), 2016,
+    - when it needs fewer flops (N well below K, :func:`_small_form_cheaper`): the N x N (Woodbury) form of Bhattacharya, Chakraborty & Mallick (Biometrika 103(4), 2016,
       Algorithm 1) with ``Phi = sqrt(g_xy) A^T``: ``u = E1 / sqrt(g_x)``, ``v = Phi u + E2``,
       ``w = (Phi Phi^T / g_x + I_N)^-1 (sqrt(g_xy) X^T - v)``, ``D^x^T = u + Phi^T w / g_x`` (one N x N
       Cholesky per dictionary). The residual follows from the same products, ``X^T - A^T u - sqrt(g_xy) A^T A w
@@ -580,7 +592,7 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     bg = rng.bit_generator
     E = np.empty((K, M))
     _randn_fill(bg, E)
-    if N < K:
+    if _small_form_cheaper(N, K, M):
         E2 = np.empty((N, M))
         _randn_fill(bg, E2)
         H = np.empty((N, N))
