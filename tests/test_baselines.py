@@ -219,20 +219,27 @@ def test_ddl_fista_kernel_matches_numpy_reference(alpha, warm):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
 
 
-@pytest.mark.parametrize("n_components", [20, 60])
-def test_ddl_dictionary_learning_matches_numpy_reference(n_components):
-    """Dictionary learning (FISTA codes and atom updates in numba; 60 atoms on 50 pairs leave some unused, so
-    atoms are re-drawn) gives the dictionary and codes of the NumPy reference (tests/naive.py) to 1e-8."""
+@pytest.mark.parametrize(("n_components", "alpha"), [(20, 0.01), (60, 1.5)])
+def test_ddl_dictionary_learning_matches_numpy_reference(n_components, alpha):
+    """Dictionary learning (FISTA codes and atom updates in numba) gives the dictionary and codes of the NumPy
+    reference (tests/naive.py) to 1e-8; with 60 atoms and alpha 1.5 some atoms go unused and are re-drawn."""
     rng = np.random.default_rng(12)
     X, Y = _coupled_sparse_data(rng, 50, n_atoms=12, dx=40, dy=8, nnz=3)
     Z = np.hstack([X + 0.05 * np.abs(rng.normal(size=X.shape)), Y]) / 10
-    got = _coupled_dictionary_learning(Z, n_components, 0.01, 20, 1e-5, np.random.default_rng(3))
+    rng_fit = np.random.default_rng(3)
+    got = _coupled_dictionary_learning(Z, n_components, alpha, 20, 1e-5, rng_fit)
     want = naive.coupled_dictionary_learning(
-        Z, n_components, 0.01, 20, 1e-5, np.random.default_rng(3)
+        Z, n_components, alpha, 20, 1e-5, np.random.default_rng(3)
     )
     assert got[2] == want[2]
     np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-8)
     np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-8)
+    # re-drawn atoms take random numbers beyond the initial dictionary's
+    rng_init = np.random.default_rng(3)
+    rng_init.choice(Z.shape[0], size=n_components, replace=n_components > Z.shape[0])
+    rng_init.standard_normal((n_components, Z.shape[1]))
+    redrawn = rng_fit.bit_generator.state != rng_init.bit_generator.state
+    assert redrawn == (alpha > 1)
 
 
 def test_ddl_fit_and_codes_match_numpy_reference(monkeypatch):
