@@ -12,6 +12,8 @@ imported under another name, so both numba kernels live side by side (their cach
 Run from the repository root:
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1        # the commit before issue 12's blocked code update
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
+    .venv/bin/python benchmarks/bench_bsr_ab.py ef1133b --table   # default, single-site and MH in one table
+    .venv/bin/python benchmarks/bench_bsr_ab.py ef1133b --parts --sizes 200x256   # each update alone
 """
 
 import os
@@ -37,6 +39,7 @@ import bench_bsr as bb
 from bsrbench.models import _bsr_kernels as new
 
 DEFAULT_SIZES = ("30x64", "30x128", "60x64", "60x128", "100x196", "200x256")
+VARIANT_SIZES = ("30x64", "60x128", "200x256")
 
 
 def old_kernels(rev, workdir):
@@ -72,6 +75,39 @@ def interleaved(fa, fb, batches, per_batch):
                 f()
             out.append((time.thread_time() - c) / per_batch)
     return float(np.median(ta)), float(np.median(tb))
+
+
+def updates(mod, state, data, seed=5):
+    """The sweep's updates alone, each a closure on its own copy of ``state`` (module ``mod``'s kernels)."""
+    s = mod.BSRState(*[np.array(a, copy=True) for a in state])
+    p, r, V, Mx = s.prec, np.random.default_rng(seed), data.V, data.Mx
+    return {
+        "codes": lambda: mod.update_codes(s.R, s.D, s.norms, s.B, s.S, s.W, p[0], p[1], r),
+        "atoms (block)": lambda: mod.update_atoms(
+            V, s.R, s.D, s.norms, s.B, s.S, p[1], p[2], p[3], Mx, r
+        ),
+        "atoms (single-site)": lambda: mod.update_atoms_single(
+            s.R, s.D, s.norms, s.B, s.S, p[1], p[2], p[3], Mx, r
+        ),
+        "logits (ESS)": lambda: mod.update_w_ess(s.W, s.B, data.Lw, r),
+        "logits (MH)": lambda: mod.update_w_mh(s.W.copy(), s.B, data.Sigma, data.Lw, r),
+    }
+
+
+def parts_table(old, args):
+    """Interleaved A/B of each update alone at the first of ``args.sizes``; prints a Markdown table."""
+    N, K = args.sizes[0]
+    state, data, _, _, _ = bb.problem(N, K, warmup=2)
+    fo, fn = updates(old, state, data), updates(new, state, data)
+    print(
+        f"updates alone at N = {N}, K = {K}, {args.rev} against this checkout, interleaved: {args.batches} "
+        f"batches x {args.per_batch} calls, medians of thread CPU time; load average at the start "
+        f"{os.getloadavg()[0]:.1f}\n"
+    )
+    print(f"| update | {args.rev} ms | this checkout ms | speed-up |\n|---|---:|---:|---:|")
+    for name in fo:
+        to, tn = interleaved(fo[name], fn[name], args.batches, args.per_batch)
+        print(f"| {name} | {1e3 * to:.3f} | {1e3 * tn:.3f} | {to / tn:.2f}x |", flush=True)
 
 
 def size_cell(text):
@@ -129,23 +165,52 @@ def main(argv=None):
         default=10,
         help="Gibbs sweeps per batch (default: %(default)s)",
     )
+    ap.add_argument(
+        "--table",
+        action="store_true",
+        help="one table of the default sweep at --sizes and the single-site and MH variants at "
+        f"{' '.join(VARIANT_SIZES)} (ignores --w-update and --atom-update)",
+    )
+    ap.add_argument(
+        "--parts",
+        action="store_true",
+        help="time each update alone (codes, atoms, logits) at the first of --sizes instead of sweeps",
+    )
     args = ap.parse_args(argv)
+    if args.parts:
+        with tempfile.TemporaryDirectory() as tmp:
+            parts_table(old_kernels(args.rev, tmp), args)
+        return
+    if args.table:
+        runs = [("ess", "block", args.sizes)] + [
+            (w, a, [size_cell(c) for c in VARIANT_SIZES])
+            for w, a in (("ess", "single"), ("mh", "block"), ("mh", "single"))
+        ]
+    else:
+        runs = [(args.w_update, args.atom_update, args.sizes)]
     with tempfile.TemporaryDirectory() as tmp:
         old = old_kernels(args.rev, tmp)
         print(
-            f"sweep ({args.w_update} logits, {args.atom_update} atoms), {args.rev} against this checkout, "
-            f"interleaved: {args.batches} batches x {args.per_batch} sweeps each, medians of thread CPU time; "
-            f"load average at the start {os.getloadavg()[0]:.1f}\n"
+            f"{args.rev} against this checkout, interleaved: {args.batches} batches x {args.per_batch} "
+            f"sweeps each, medians of thread CPU time; load average at the start "
+            f"{os.getloadavg()[0]:.1f}\n"
         )
         print(
-            f"| N | K | {args.rev} ms | this checkout ms | speed-up |\n|---:|---:|---:|---:|---:|"
+            f"| logits | atoms | N | K | {args.rev} ms | this checkout ms | speed-up |\n"
+            "|---|---|---:|---:|---:|---:|---:|"
         )
-        for N, K in args.sizes:
-            state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
-            fo = sweeper(old, state, data, hyper, args.w_update, args.atom_update)
-            fn = sweeper(new, state, data, hyper, args.w_update, args.atom_update)
-            to, tn = interleaved(fo, fn, args.batches, args.per_batch)
-            print(f"| {N} | {K} | {1e3 * to:.3f} | {1e3 * tn:.3f} | {to / tn:.2f}x |", flush=True)
+        for w_update, atom_update, sizes in runs:
+            for N, K in sizes:
+                state, data, hyper, _, _ = bb.problem(N, K, warmup=2)
+                fo = sweeper(old, state, data, hyper, w_update, atom_update)
+                fn = sweeper(new, state, data, hyper, w_update, atom_update)
+                to, tn = interleaved(fo, fn, args.batches, args.per_batch)
+                print(
+                    f"| {w_update} | {atom_update} | {N} | {K} | {1e3 * to:.3f} | {1e3 * tn:.3f} | "
+                    f"{to / tn:.2f}x |",
+                    flush=True,
+                )
+        print(f"\nload average at the end {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

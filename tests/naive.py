@@ -23,11 +23,14 @@ def log_sigmoid(x):
 
 
 def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
-    """(b_ki, s_ki) block update, i outer and k inner; per point, K uniforms then K normals are drawn."""
+    """(b_ki, s_ki) block update, i outer and k inner; drawn first: K x N uniforms, then K x N normals, atom-major
+    (``[k, i]`` for atom k and point i)."""
     N, K = B.shape
+    U_all = rng.random((K, N))
+    Z_all = rng.standard_normal((K, N))
     for i in range(N):
-        U = rng.random(K)
-        Zn = rng.standard_normal(K)
+        U = U_all[:, i]
+        Zn = Z_all[:, i]
         for k in range(K):
             d = D[k]
             a_old = S[i, k] * B[i, k]
@@ -49,9 +52,11 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
     written with the weighted inner products (no rescaling); same draw order as update_codes."""
     N, K = B.shape
     c = np.where(np.arange(D.shape[1]) < Mx, g_nx, g_ny)  # noise precision per row of v
+    U_all = rng.random((K, N))
+    Z_all = rng.standard_normal((K, N))
     for i in range(N):
-        U = rng.random(K)
-        Zn = rng.standard_normal(K)
+        U = U_all[:, i]
+        Zn = Z_all[:, i]
         for k in range(K):
             d = D[k]
             a_old = S[i, k] * B[i, k]
@@ -74,6 +79,17 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
     K, M = D.shape
     A = (B * S).T  # K x N
     E = rng.standard_normal((K, M))
+    N = A.shape[1]
+    if (
+        N * N * K + 2 * N**3 / 3 + 4 * N * N * M < N * K * K + 2 * K**3 / 3 + 2 * K * K * M
+    ):  # N x N form
+        E2 = rng.standard_normal((N, M))
+        for lo, hi, g, gn in ((0, Mx, g_x, g_xy), (Mx, M, g_y, g_ny)):
+            if hi > lo:
+                D[:, lo:hi] = atoms_woodbury(A, V[:, lo:hi], g, gn, E[:, lo:hi], E2[:, lo:hi])
+        norms[:] = np.sum(D * D, axis=1)
+        R[:, :] = V - A.T @ D
+        return
     for lo, hi, g, gn in ((0, Mx, g_x, g_xy), (Mx, M, g_y, g_ny)):
         if hi == lo:
             continue
@@ -83,6 +99,20 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
         D[:, lo:hi] = solve_triangular(L.T, mean_part + E[:, lo:hi], lower=False)
     norms[:] = np.sum(D * D, axis=1)
     R[:, :] = V - A.T @ D
+
+
+def atoms_woodbury(A, X, g, gn, E1, E2):
+    """A draw of the atoms' rows (K, p) with precision ``P = g I_K + gn A A^T`` and mean ``P^-1 gn A X`` (A: K x N
+    codes, X: N x p data columns) from standard normals E1 (K, p) and E2 (N, p), by the N x N form of
+    Bhattacharya, Chakraborty & Mallick (2016, Algorithm 1) with ``Phi = sqrt(gn) A^T`` and prior covariance
+    ``I / g``: ``u = E1 / sqrt(g)``, ``v = Phi u + E2``, ``w = (Phi Phi^T / g + I)^-1 (sqrt(gn) X - v)``,
+    ``u + Phi^T w / g``. Linear in (E1, E2), so its mean and covariance can be checked exactly."""
+    N = A.shape[1]
+    Phi = np.sqrt(gn) * A.T
+    u = E1 / np.sqrt(g)
+    v = Phi @ u + E2
+    w = np.linalg.solve(Phi @ Phi.T / g + np.eye(N), np.sqrt(gn) * X - v)
+    return u + Phi.T @ w / g
 
 
 def update_atoms_single(R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
@@ -357,3 +387,54 @@ def predict_draws_prior_codes(Xt, Xtr, j, Dx, Dy, Ws, gs, gxy, seed):
             r = Xt[t] - Dx[l].T @ alpha
             out_ll[t, l] = 0.5 * Mx * np.log(gxy[l] / (2 * np.pi)) - 0.5 * gxy[l] * r @ r
     return out_y, out_ll
+
+
+def fista_codes(Z, D, alpha, C0=None, n_iter=200, tol=1e-7):
+    """DDL's Lasso codes ``argmin_C 0.5 ||Z - C D||^2 + alpha ||C||_1`` of all rows at once: FISTA (Beck &
+    Teboulle 2009) in whole-array NumPy, the reference of :func:`bsrbench.models._ddl_kernels.fista_codes`."""
+    G = D @ D.T
+    L = float(np.linalg.eigvalsh(G)[-1]) if G.size else 1.0
+    L = L if L > 0 else 1.0
+    ZD = Z @ D.T
+    C = np.zeros((Z.shape[0], D.shape[0])) if C0 is None else C0.copy()
+    V = C.copy()
+    t = 1.0
+    thr = alpha / L
+    for _ in range(n_iter):
+        W = V - (V @ G - ZD) / L
+        C_new = np.sign(W) * np.maximum(np.abs(W) - thr, 0.0)
+        t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
+        V = C_new + ((t - 1.0) / t_new) * (C_new - C)
+        change = np.max(np.abs(C_new - C)) if C.size else 0.0
+        C, t = C_new, t_new
+        if change < tol:
+            break
+    return C
+
+
+def coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
+    """DDL's dictionary learning in whole-array NumPy (reference of bsrbench.models.ddl's): FISTA codes, then
+    Mairal et al.'s (JMLR 2010) block-coordinate atom update, unused atoms re-drawn from the data."""
+    n, p = Z.shape
+    idx = rng.choice(n, size=n_components, replace=n_components > n)
+    D = Z[idx] + 1e-3 * rng.standard_normal((n_components, p)) * (np.std(Z) + 1e-12)
+    D /= np.maximum(np.linalg.norm(D, axis=1, keepdims=True), 1e-12)
+    C = None
+    prev = np.inf
+    it = 0
+    for it in range(1, max_iter + 1):  # noqa: B007 - the count is returned
+        C = fista_codes(Z, D, alpha, C0=C, n_iter=60)
+        A = C.T @ C
+        B = Z.T @ C
+        for k in range(n_components):
+            if A[k, k] < 1e-12:
+                d = Z[rng.integers(n)] + 1e-3 * rng.standard_normal(p)
+            else:
+                d = D[k] + (B[:, k] - D.T @ A[:, k]) / A[k, k]
+            D[k] = d / max(np.linalg.norm(d), 1.0)
+        obj = 0.5 * np.sum((Z - C @ D) ** 2) + alpha * np.abs(C).sum()
+        if abs(prev - obj) <= tol * max(abs(obj), 1e-12):
+            break
+        prev = obj
+    C = fista_codes(Z, D, alpha, C0=C, n_iter=300)
+    return D, C, it

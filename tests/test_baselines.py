@@ -1,12 +1,14 @@
 """Tests of the baseline regressors: scikit-learn conventions, known-answer problems, bad input."""
 
+import naive
 import numpy as np
 import pytest
 from sklearn.utils.estimator_checks import parametrize_with_checks
 from threadpoolctl import threadpool_limits
 
+import bsrbench.models.ddl as ddl_module
 from bsrbench.errors import InputError
-from bsrbench.models.ddl import DDL
+from bsrbench.models.ddl import DDL, _coupled_dictionary_learning, _fista_codes
 from bsrbench.models.reference import NearestNeighbourRegressor, RidgeRegressor
 from bsrbench.models.rvm import RVM
 from bsrbench.models.sr import SR
@@ -200,6 +202,63 @@ def test_ddl_recovers_poses_from_shared_sparse_codes():
     # same seed, same dictionary
     m2 = DDL(n_components=8, alpha=0.005, normalize="none", max_iter=100, random_state=0).fit(X, Y)
     np.testing.assert_array_equal(m.components_, m2.components_)
+
+
+@pytest.mark.parametrize(("alpha", "warm"), [(0.01, False), (0.1, False), (0.03, True)])
+def test_ddl_fista_kernel_matches_numpy_reference(alpha, warm):
+    """The numba FISTA gives the codes of the whole-array NumPy loop (tests/naive.py) to 1e-8, sparse and dense
+    iterates alike (alpha 0.01: many non-zero codes; 0.1: few), cold and warm started."""
+    rng = np.random.default_rng(11)
+    D = rng.normal(size=(100, 158))
+    D /= np.linalg.norm(D, axis=1, keepdims=True)
+    Z = rng.normal(size=(300, 100)) @ D * 0.1 + 0.05 * rng.normal(size=(300, 158))
+    C0 = naive.fista_codes(Z, D, alpha, n_iter=5) if warm else None
+    want = naive.fista_codes(Z, D, alpha, C0=C0, n_iter=1000)
+    got = _fista_codes(Z, D, alpha, C0=C0, n_iter=1000)
+    assert 0 < np.count_nonzero(want) < want.size
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize(("n_components", "alpha"), [(20, 0.01), (60, 1.5)])
+def test_ddl_dictionary_learning_matches_numpy_reference(n_components, alpha):
+    """Dictionary learning (FISTA codes and atom updates in numba) gives the dictionary and codes of the NumPy
+    reference (tests/naive.py) to 1e-8; with 60 atoms and alpha 1.5 some atoms go unused and are re-drawn."""
+    rng = np.random.default_rng(12)
+    X, Y = _coupled_sparse_data(rng, 50, n_atoms=12, dx=40, dy=8, nnz=3)
+    Z = np.hstack([X + 0.05 * np.abs(rng.normal(size=X.shape)), Y]) / 10
+    rng_fit = np.random.default_rng(3)
+    got = _coupled_dictionary_learning(Z, n_components, alpha, 20, 1e-5, rng_fit)
+    want = naive.coupled_dictionary_learning(
+        Z, n_components, alpha, 20, 1e-5, np.random.default_rng(3)
+    )
+    assert got[2] == want[2]
+    np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-8)
+    # re-drawn atoms take random numbers beyond the initial dictionary's
+    rng_init = np.random.default_rng(3)
+    rng_init.choice(Z.shape[0], size=n_components, replace=n_components > Z.shape[0])
+    rng_init.standard_normal((n_components, Z.shape[1]))
+    redrawn = rng_fit.bit_generator.state != rng_init.bit_generator.state
+    assert redrawn == (alpha > 1)
+
+
+def test_ddl_fit_and_codes_match_numpy_reference(monkeypatch):
+    """A whole DDL fit and its test codes are those of the NumPy reference to 1e-8 (a well-conditioned problem:
+    fewer atoms than features; with more, the Lasso solution is not unique and FISTA's iterates amplify a
+    rounding-level change of the dictionary, see benchmarks/bench_ddl.py)."""
+    rng = np.random.default_rng(13)
+    X, Y = _coupled_sparse_data(rng, 260, n_atoms=12, dx=40, dy=8, nnz=3)
+    X = X + 0.05 * np.abs(rng.normal(size=X.shape))
+    fast = DDL(n_components=20, alpha=0.01, max_iter=20, random_state=3).fit(X[:200], Y[:200])
+    codes = fast.sparse_code(X[200:])
+    monkeypatch.setattr(ddl_module, "_fista_codes", naive.fista_codes)
+    monkeypatch.setattr(
+        ddl_module, "_coupled_dictionary_learning", naive.coupled_dictionary_learning
+    )
+    slow = DDL(n_components=20, alpha=0.01, max_iter=20, random_state=3).fit(X[:200], Y[:200])
+    assert fast.n_iter_ == slow.n_iter_
+    np.testing.assert_allclose(fast.components_, slow.components_, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(codes, slow.sparse_code(X[200:]), rtol=0, atol=1e-8)
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -78,9 +78,10 @@ def test_codes_blocked_over_atoms_match_naive(K):
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
+@pytest.mark.parametrize("N, K", [(7, 5), (4, 9)])  # the K x K form and the N x N (Woodbury) form
 @pytest.mark.parametrize("My", [3, 0])
-def test_atoms_match_naive(My):
-    s1, data, _ = _problem(3, My=My)
+def test_atoms_match_naive(My, N, K):
+    s1, data, _ = _problem(3, N=N, K=K, My=My)
     s2 = _copy(s1)
     p = s1.prec
     kern.update_atoms(
@@ -129,9 +130,10 @@ def test_single_site_atoms_match_naive(My):
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
-def test_atoms_blocked_solves_large_k():
-    """K larger than the block size of the triangular solves."""
-    s1, data, _ = _problem(4, N=30, K=101, Mx=6, My=5)
+@pytest.mark.parametrize("N", [30, 120])
+def test_atoms_large_k(N):
+    """Many atoms, in the N x N form (N < K) and the K x K one."""
+    s1, data, _ = _problem(4, N=N, K=101, Mx=6, My=5)
     s2 = _copy(s1)
     p = s1.prec
     kern.update_atoms(
@@ -210,9 +212,10 @@ def test_codes_separate_noise_match_naive(seed):
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
+@pytest.mark.parametrize("N, K", [(7, 5), (4, 9)])
 @pytest.mark.parametrize("single", [False, True])
-def test_atoms_separate_noise_match_naive(single):
-    s1, data, _ = _problem(3, **MODEL_VARIANTS["separate"])
+def test_atoms_separate_noise_match_naive(single, N, K):
+    s1, data, _ = _problem(3, N=N, K=K, **MODEL_VARIANTS["separate"])
     s2 = _copy(s1)
     p = s1.prec
     if single:
@@ -274,6 +277,54 @@ def test_atoms_separate_noise_match_naive(single):
     _assert_states_close(s1, s2)
 
 
+def test_atoms_woodbury_form_is_the_conditional():
+    """The N x N form of the block atom draw (N < K) is an exact draw of the K x K Gaussian conditional: it is
+    linear in its normals (E1, E2), with mean P^-1 gn A X at E = 0 and covariance T1 T1^T + T2 T2^T = P^-1."""
+    rng = np.random.default_rng(31)
+    N, K, g, gn = 5, 9, 0.7, 2.3
+    A = rng.standard_normal((K, N)) * (rng.random((K, N)) < 0.5)
+    X = rng.standard_normal((N, 1))
+    P = g * np.eye(K) + gn * A @ A.T
+    mean = naive.atoms_woodbury(A, X, g, gn, np.zeros((K, 1)), np.zeros((N, 1)))
+    np.testing.assert_allclose(mean, np.linalg.solve(P, gn * A @ X), rtol=1e-10, atol=1e-12)
+    T1 = np.column_stack(
+        [naive.atoms_woodbury(A, X, g, gn, e[:, None], np.zeros((N, 1)))[:, 0] for e in np.eye(K)]
+    )
+    T2 = np.column_stack(
+        [naive.atoms_woodbury(A, X, g, gn, np.zeros((K, 1)), e[:, None])[:, 0] for e in np.eye(N)]
+    )
+    T1, T2 = T1 - mean, T2 - mean
+    np.testing.assert_allclose(T1 @ T1.T + T2 @ T2.T, np.linalg.inv(P), rtol=1e-9, atol=1e-12)
+
+
+def test_blas_wrappers_match_numpy():
+    """The kernels' syrk, Cholesky, triangular solves and triangular product equal NumPy's on row-major arrays."""
+    rng = np.random.default_rng(32)
+    A = rng.standard_normal((13, 21))
+    G, H = np.empty((21, 21)), np.empty((13, 13))
+    kern._syrk_gram(A, G, True)
+    kern._syrk_gram(A, H, False)
+    np.testing.assert_allclose(G, A.T @ A, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(H, A @ A.T, rtol=1e-12, atol=1e-12)
+    L = G + np.eye(21)
+    kern._cholesky_lower(L)
+    np.testing.assert_allclose(L, np.linalg.cholesky(G + np.eye(21)), rtol=1e-12, atol=1e-12)
+    Z = rng.standard_normal((21, 4))
+    X = Z.copy()
+    kern._tri_solve(L, X, False)
+    np.testing.assert_allclose(L @ X, Z, atol=1e-12)
+    kern._tri_solve(L, X, True)
+    np.testing.assert_allclose(L @ (L.T @ X), Z, atol=1e-12)
+    E = rng.standard_normal((3, 21))
+    F = E.copy()
+    kern._times_lower_t(F, L)
+    np.testing.assert_allclose(F, E @ L.T, rtol=1e-12, atol=1e-12)
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        kern._cholesky_lower(-np.eye(3))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        kern._tri_solve(np.asfortranarray(L), X, False)
+
+
 @pytest.mark.parametrize("ratio", ["exact", "printed", "literal"])
 @pytest.mark.parametrize("w_mean", [0.0, -1.5])
 def test_w_mh_matches_naive(ratio, w_mean):
@@ -316,6 +367,13 @@ def test_w_ess_matches_naive(w_mean):
 )
 def test_sweeps_match_naive(w_update, atom_update):
     _sweeps_match(_problem(8), w_update, atom_update)
+
+
+@pytest.mark.parametrize("w_update", ["ess", "mh"])
+@pytest.mark.parametrize("variant", ["paper", "separate"])
+def test_sweeps_with_fewer_points_than_atoms_match_naive(w_update, variant):
+    """N < K: the block atom update in its N x N form."""
+    _sweeps_match(_problem(8, N=4, K=9, **MODEL_VARIANTS[variant]), w_update, "block")
 
 
 @pytest.mark.parametrize("variant", ["noise-prior", "separate", "w-mean"])

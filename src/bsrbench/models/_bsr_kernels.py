@@ -41,11 +41,12 @@ import ctypes.util
 import math
 from typing import NamedTuple
 
+import llvmlite.binding as _llvm
 import numpy as np
 from llvmlite import ir
 from numba import njit
 from numba.core import types
-from numba.extending import intrinsic
+from numba.extending import get_cython_function_address, intrinsic
 from numba.np.random import _constants as _zig
 from numba.np.random.generator_core import next_uint64 as _next_uint64
 
@@ -160,54 +161,124 @@ def _row_norms(D, norms):
         norms[k] = _dot(D[k], D[k])
 
 
-@njit(cache=True, fastmath=_VEC)
-def _trsv_rows(L, Z, j0, j1, transpose):
-    """Unblocked triangular solve on rows j0:j1 of Z (in place) with the diagonal block L[j0:j1, j0:j1]:
-    ``L_b X = Z_b`` (forward) or ``L_b^T X = Z_b`` (backward, ``transpose``). Indexed, no row views."""
-    ncol = Z.shape[1]
-    if not transpose:
-        for j in range(j0, j1):
-            for i in range(j0, j):
-                lji = L[j, i]
-                for m in range(ncol):
-                    Z[j, m] -= lji * Z[i, m]
-            inv = 1.0 / L[j, j]
-            for m in range(ncol):
-                Z[j, m] *= inv
-    else:
-        for j in range(j1 - 1, j0 - 1, -1):
-            for i in range(j + 1, j1):
-                lij = L[i, j]
-                for m in range(ncol):
-                    Z[j, m] -= lij * Z[i, m]
-            inv = 1.0 / L[j, j]
-            for m in range(ncol):
-                Z[j, m] *= inv
+# ----------------------------------------------------------------------------------------------------------
+# BLAS-3 and LAPACK routines numba does not wrap (syrk, trsm, trmm, potrf), from SciPy's Cython BLAS/LAPACK: the
+# routines' addresses are registered as named symbols, so cached kernels link to them by name in every process.
+# Fortran routines see a C-contiguous (m, n) array as its (n, m) transpose; the wrappers below take row-major
+# arrays and do the transposition in the arguments. Scalars go by pointer, in small arrays.
+# ----------------------------------------------------------------------------------------------------------
+for _lib, _names in (
+    ("scipy.linalg.cython_blas", ("dsyrk", "dtrsm", "dtrmm")),
+    ("scipy.linalg.cython_lapack", ("dpotrf",)),
+):
+    for _name in _names:
+        _llvm.add_symbol("bsrbench_" + _name, get_cython_function_address(_lib, _name))
+_VP = types.voidptr
+_dsyrk = types.ExternalFunction("bsrbench_dsyrk", types.void(*(_VP,) * 10))
+_dtrsm = types.ExternalFunction("bsrbench_dtrsm", types.void(*(_VP,) * 11))
+_dtrmm = types.ExternalFunction("bsrbench_dtrmm", types.void(*(_VP,) * 11))
+_dpotrf = types.ExternalFunction("bsrbench_dpotrf", types.void(*(_VP,) * 5))
+
+
+@intrinsic
+def _ptr(typingctx, arr):
+    """The data pointer of an array (of the view's first element), as void*."""
+    if not isinstance(arr, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        return builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+
+    return types.voidptr(arr), codegen
 
 
 @njit(cache=True)
-def _forward_solve(L, Z, nb=48):
-    """Solve L X = Z in place (L lower triangular K x K; Z (K, m) row-major); blocked, off-diagonal
-    blocks by matrix products (BLAS-3)."""
-    K = L.shape[0]
-    for j0 in range(0, K, nb):
-        j1 = min(j0 + nb, K)
-        if j0 > 0:
-            Z[j0:j1] -= np.ascontiguousarray(L[j0:j1, :j0]) @ Z[:j0]
-        _trsv_rows(L, Z, j0, j1, False)
+def _need_c(a):
+    """The BLAS wrappers read arrays by their data pointer: they must be C-contiguous."""
+    if not a.flags.c_contiguous:
+        raise ValueError("BLAS wrapper: the array must be C-contiguous")
 
 
 @njit(cache=True)
-def _backward_solve_t(L, Z, nb=48):
-    """Solve L^T X = Z in place (L lower triangular K x K; Z (K, m) row-major); blocked as above."""
-    K = L.shape[0]
-    nblk = (K + nb - 1) // nb
-    for b in range(nblk - 1, -1, -1):
-        j0 = b * nb
-        j1 = min(j0 + nb, K)
-        if j1 < K:
-            Z[j0:j1] -= np.ascontiguousarray(L[j1:, j0:j1].T) @ Z[j1:]
-        _trsv_rows(L, Z, j0, j1, True)
+def _chars(a, b, c, d):
+    """Four BLAS option characters, one byte each."""
+    out = np.empty(4, dtype=np.uint8)
+    out[0], out[1], out[2], out[3] = ord(a), ord(b), ord(c), ord(d)
+    return out
+
+
+@njit(cache=True)
+def _syrk_gram(A, G, transpose):
+    """G = A^T A (``transpose``; A (n, k) -> G (k, k)) or G = A A^T (A (n, k) -> G (n, n)) for C-contiguous A,
+    by dsyrk (half the flops of the product); both triangles of G are filled."""
+    _need_c(A)
+    _need_c(G)
+    n, k = A.shape
+    m = k if transpose else n
+    ch = _chars("L", "N" if transpose else "T", "N", "N")
+    ints = np.array([m, n if transpose else k, k, m], dtype=np.int32)  # n, k, lda, ldc
+    sc = np.array([1.0, 0.0])
+    _dsyrk(
+        _ptr(ch[0:1]), _ptr(ch[1:2]), _ptr(ints[0:1]), _ptr(ints[1:2]), _ptr(sc[0:1]), _ptr(A),
+        _ptr(ints[2:3]), _ptr(sc[1:2]), _ptr(G), _ptr(ints[3:4]),
+    )  # fmt: skip
+    # Fortran's lower triangle is the row-major upper one: mirror it
+    for i in range(m):
+        for j in range(i):
+            G[i, j] = G[j, i]
+
+
+@njit(cache=True)
+def _cholesky_lower(P):
+    """In place: P (C-contiguous, symmetric positive definite) becomes its lower Cholesky factor L, P = L L^T
+    (dpotrf on the transposed view; the strict upper triangle is zeroed). Raises if P is not positive definite."""
+    _need_c(P)
+    n = P.shape[0]
+    ch = _chars("U", "N", "N", "N")
+    ints = np.array([n, n, 0], dtype=np.int32)
+    _dpotrf(_ptr(ch[0:1]), _ptr(ints[0:1]), _ptr(P), _ptr(ints[1:2]), _ptr(ints[2:3]))
+    if ints[2] != 0:
+        raise np.linalg.LinAlgError("Matrix is not positive definite.")
+    for i in range(n):
+        for j in range(i + 1, n):
+            P[i, j] = 0.0
+
+
+@njit(cache=True)
+def _tri_solve(L, Z, transpose):
+    """In place: Z (K, m) becomes L^-1 Z, or L^-T Z with ``transpose`` (L (K, K) lower, both C-contiguous),
+    by dtrsm on the transposed views (Z^T L^-T, Z^T L^-1 from the right)."""
+    _need_c(L)
+    _need_c(Z)
+    K, m = Z.shape
+    if K == 0 or m == 0:
+        return
+    ch = _chars("R", "U", "T" if transpose else "N", "N")
+    ints = np.array([m, K, K, m], dtype=np.int32)
+    sc = np.array([1.0])
+    _dtrsm(
+        _ptr(ch[0:1]), _ptr(ch[1:2]), _ptr(ch[2:3]), _ptr(ch[3:4]), _ptr(ints[0:1]), _ptr(ints[1:2]),
+        _ptr(sc), _ptr(L), _ptr(ints[2:3]), _ptr(Z), _ptr(ints[3:4]),
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _times_lower_t(Z, L):
+    """In place: Z (m, n) becomes Z L^T for a lower-triangular L (n, n), both C-contiguous (dtrmm: half the flops
+    of the product)."""
+    _need_c(Z)
+    _need_c(L)
+    m, n = Z.shape
+    if m == 0 or n == 0:
+        return
+    ch = _chars("L", "U", "T", "N")
+    ints = np.array([n, m, n, n], dtype=np.int32)
+    sc = np.array([1.0])
+    _dtrmm(
+        _ptr(ch[0:1]), _ptr(ch[1:2]), _ptr(ch[2:3]), _ptr(ch[3:4]), _ptr(ints[0:1]), _ptr(ints[1:2]),
+        _ptr(sc), _ptr(L), _ptr(ints[2:3]), _ptr(Z), _ptr(ints[3:4]),
+    )  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -314,19 +385,43 @@ def _transpose_into(src, dst):
 
 
 @njit(cache=True)
+def _codes_into_t(B, S, At):
+    """At[k, i] = B[i, k] S[i, k] (atom-major codes from the point-major state), tile by tile."""
+    N, K = S.shape
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for k in range(k0, k1):
+                for i in range(i0, i1):
+                    At[k, i] = S[i, k] * B[i, k]  # branch-free: b is 0 or 1
+
+
+@njit(cache=True)
+def _store_codes_from_t(Bt, St, B, S):
+    """S[i, k] = St[k, i] and B[i, k] = (Bt[k, i] != 0) (the atom-major results back into the state), tile by
+    tile."""
+    N, K = S.shape
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for i in range(i0, i1):
+                for k in range(k0, k1):
+                    S[i, k] = St[k, i]
+                    B[i, k] = 1 if Bt[k, i] != 0.0 else 0
+
+
+@njit(cache=True)
 def _code_randoms(rng, N, K, Ut, Zt):
-    """The code update's random numbers in their documented order (per point i: K uniforms, then K standard
-    normals), stored atom-major: ``Ut[k, i]``, ``Zt[k, i]``."""
+    """The code update's random numbers in their documented order, atom-major: K x N uniforms (atom 1's for
+    points 1..N, then atom 2's, ...), then K x N standard normals in the same order, as ``Ut[k, i]``,
+    ``Zt[k, i]``."""
     bg = rng.bit_generator
-    U = np.empty((N, K))
-    Z = np.empty((N, K))
-    for i in range(N):
-        for k in range(K):
-            U[i, k] = _rand(bg)
-        for k in range(K):
-            Z[i, k] = _randn(bg)
-    _transpose_into(U, Ut)
-    _transpose_into(Z, Zt)
+    for k in range(K):
+        for i in range(N):
+            Ut[k, i] = _rand(bg)
+    _randn_fill(bg, Zt)
 
 
 @njit(cache=True, fastmath=_VEC, error_model="numpy")
@@ -382,7 +477,9 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
 
     With ``tau = g_s + g_xy ||d_k||^2`` and ``mu = g_xy d_k^T r_i^(-k) / tau``:
     ``logit P(b=1) = w_ik + 0.5 log(g_s / tau) + 0.5 tau mu^2``; ``s ~ N(mu, 1/tau)`` if b = 1 else
-    ``s ~ N(0, 1/g_s)``. Draw order per point i: K uniforms (for b_i1..b_iK), then K standard normals (s).
+    ``s ~ N(0, 1/g_s)``. Draw order (atom-major): K x N uniforms (for b_ki: k outer, i inner), then K x N
+    standard normals (s) in the same order. Codes of different points are independent given D, so which
+    point gets which of the i.i.d. draws does not change the conditional.
 
     Each point's atoms are visited in order k = 1..K, each conditioned on the point's atoms < k, with the
     point's own random numbers: the chain is that of a point-by-point sweep. Codes of different points are
@@ -405,7 +502,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     Zt = np.empty((K, N))
     _code_randoms(rng, N, K, Ut, Zt)
     At = np.empty((K, N))
-    _transpose_into(_codes_from(B, S), At)
+    _codes_into_t(B, S, At)
     Wt = np.empty((K, N))
     _transpose_into(W, Wt)
     Bt = np.empty((K, N))
@@ -423,12 +520,7 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
             Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
         )
         R += Dt[:nb].T @ Db
-    _transpose_into(St, S)
-    Bf = np.empty((N, K))
-    _transpose_into(Bt, Bf)
-    for i in range(N):
-        for k in range(K):
-            B[i, k] = 1 if Bf[i, k] != 0.0 else 0
+    _store_codes_from_t(Bt, St, B, S)
 
 
 @njit(cache=True)
@@ -462,24 +554,91 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
 
 
 @njit(cache=True)
+def _small_form_cheaper(N, K, M):
+    """Whether the N x N form of the block atom draw needs fewer flops than the K x K form (N < K by enough):
+    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, solves and residual) against
+    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both."""
+    n, k, m = float(N), float(K), float(M)
+    return (
+        n * n * k + 2.0 * n**3 / 3.0 + 4.0 * n * n * m
+        < n * k * k + 2.0 * k**3 / 3.0 + 2.0 * k * k * m
+    )
+
+
+@njit(cache=True)
 def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     """Draw all atoms given the codes, then recompute the residual.
 
     Given the codes the rows of D^x are independent with the common K x K precision
-    ``P = g_x I + g_xy A A^T`` (A = codes, K x N): ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with
-    ``P = U^T U``; likewise D^y with g_y. One Cholesky per dictionary and sweep. Draw order: one
-    (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y). With separate noise
-    precisions, ``g_xy`` is the feature rows' g_nx and ``g_ny`` (>= 0) the output rows' (it replaces g_xy in
-    D^y's precision and mean); the default ``g_ny = -1`` means one shared g_xy.
+    ``P = g_x I + g_xy A A^T`` (A = codes, K x N) and mean ``P^-1 g_xy A X^T``; likewise D^y with g_y. Two
+    exact ways to draw them (docs/model.md, section "Atoms"):
+
+    - ``D^x^T = U^-1 (U^-T g_xy A X^T + E)`` with ``P = U^T U`` (one K x K Cholesky per dictionary).
+      Draw order: one (K, M) array of standard normals E (columns < Mx for D^x, the rest for D^y).
+    - when it needs fewer flops (N well below K, :func:`_small_form_cheaper`): the N x N (Woodbury) form of Bhattacharya, Chakraborty & Mallick (Biometrika 103(4), 2016,
+      Algorithm 1) with ``Phi = sqrt(g_xy) A^T``: ``u = E1 / sqrt(g_x)``, ``v = Phi u + E2``,
+      ``w = (Phi Phi^T / g_x + I_N)^-1 (sqrt(g_xy) X^T - v)``, ``D^x^T = u + Phi^T w / g_x`` (one N x N
+      Cholesky per dictionary). The residual follows from the same products, ``X^T - A^T u - sqrt(g_xy) A^T A w
+      / g_x``. Draw order: a (K, M) array E1, then an (N, M) array E2 of standard normals.
+
+    With separate noise precisions, ``g_xy`` is the feature rows' g_nx and ``g_ny`` (>= 0) the output rows' (it
+    replaces g_xy in D^y's precision and mean); the default ``g_ny = -1`` means one shared g_xy.
     """
     if g_ny < 0.0:
         g_ny = g_xy
-    K, M = D.shape
+    N, K = B.shape
+    M = D.shape[1]
     A = _codes_from(B, S)
-    G = A.T @ A
-    AV = A.T @ V
+    bg = rng.bit_generator
     E = np.empty((K, M))
-    _randn_fill(rng.bit_generator, E)
+    _randn_fill(bg, E)
+    if _small_form_cheaper(N, K, M):
+        E2 = np.empty((N, M))
+        _randn_fill(bg, E2)
+        H = np.empty((N, N))
+        _syrk_gram(A, H, False)  # A A^T (code layout: A is N x K)
+        U = np.empty((K, M))  # u = E1 / sqrt(g), both dictionaries side by side
+        sx, sy = 1.0 / np.sqrt(g_x), 1.0 / np.sqrt(g_y)
+        for k in range(K):
+            for m in range(M):
+                U[k, m] = E[k, m] * (sx if m < Mx else sy)
+        Au = A @ U
+        Wr = np.empty((N, M))
+        for part in range(2):
+            if part == 0:
+                lo, hi, g, gn = 0, Mx, g_x, g_xy
+            else:
+                lo, hi, g, gn = Mx, M, g_y, g_ny
+            if hi == lo:
+                continue
+            c = np.sqrt(gn)
+            Mm = H * (gn / g)
+            for i in range(N):
+                Mm[i, i] += 1.0
+            _cholesky_lower(Mm)
+            Wp = np.empty((N, hi - lo))
+            for i in range(N):
+                for m in range(hi - lo):
+                    Wp[i, m] = c * (V[i, lo + m] - Au[i, m + lo]) - E2[i, lo + m]
+            _tri_solve(Mm, Wp, False)
+            _tri_solve(Mm, Wp, True)
+            f = c / g  # D^T = u + Phi^T w / g = u + (c / g) A^T w
+            for i in range(N):
+                for m in range(hi - lo):
+                    Wr[i, lo + m] = f * Wp[i, m]
+        Dp = A.T @ Wr
+        Hw = H @ Wr
+        for k in range(K):
+            for m in range(M):
+                D[k, m] = U[k, m] + Dp[k, m]
+        for i in range(N):
+            for m in range(M):
+                R[i, m] = V[i, m] - Au[i, m] - Hw[i, m]
+        _row_norms(D, norms)
+        return
+    G = np.empty((K, K))
+    _syrk_gram(A, G, True)
+    AV = A.T @ V
     for part in range(2):
         if part == 0:
             lo, hi, g, gn = 0, Mx, g_x, g_xy
@@ -490,11 +649,11 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
         P = gn * G
         for k in range(K):
             P[k, k] += g
-        Lc = np.linalg.cholesky(P)
+        _cholesky_lower(P)
         Z = np.ascontiguousarray(AV[:, lo:hi]) * gn
-        _forward_solve(Lc, Z)
+        _tri_solve(P, Z, False)
         Z += E[:, lo:hi]
-        _backward_solve_t(Lc, Z)
+        _tri_solve(P, Z, True)
         D[:, lo:hi] = Z
     _row_norms(D, norms)
     R[:, :] = V - A @ D
@@ -762,7 +921,8 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     Mu = Lam @ Sigma
     Eps = np.empty((K, N))
     _randn_fill(rng.bit_generator, Eps)
-    Wp = Mu + Eps @ Lw.T
+    _times_lower_t(Eps, Lw)  # Eps Lw^T
+    Wp = Mu + Eps
     if w_mean != 0.0:
         Wp += w_mean
     Lamp = np.empty((K, N))
@@ -821,9 +981,9 @@ def update_w_ess(W, B, Lw, rng, w_mean=0.0):
     Wt = np.empty((K, N))
     _transpose_into(W, Wt)
     bg = rng.bit_generator
-    Eps = np.empty((K, N))
-    _randn_fill(bg, Eps)
-    Nu = Eps @ Lw.T
+    Nu = np.empty((K, N))
+    _randn_fill(bg, Nu)
+    _times_lower_t(Nu, Lw)  # the ellipses Lw eps_k, one per row
     wp = np.empty(N)
     two_pi = 2.0 * np.pi
     moved = 0

@@ -34,6 +34,7 @@ from sklearn.decomposition import sparse_encode
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import StrOptions
 
+from ._ddl_kernels import fista_codes, update_atoms
 from .reference import (
     COUNT,
     POSITIVE,
@@ -57,24 +58,14 @@ def _block_scale(A):
 
 
 def _fista_codes(Z, D, alpha, C0=None, n_iter=200, tol=1e-7):
-    """Lasso codes ``argmin_C 0.5 ||Z - C D||^2 + alpha ||C||_1`` of all rows of Z at once (FISTA)."""
+    """Lasso codes ``argmin_C 0.5 ||Z - C D||^2 + alpha ||C||_1`` of all rows of Z at once (FISTA; the
+    iterations in one numba kernel, :func:`bsrbench.models._ddl_kernels.fista_codes`)."""
     G = D @ D.T
     L = float(np.linalg.eigvalsh(G)[-1]) if G.size else 1.0
     L = L if L > 0 else 1.0
-    ZD = Z @ D.T
-    C = np.zeros((Z.shape[0], D.shape[0])) if C0 is None else C0.copy()
-    V = C.copy()
-    t = 1.0
-    thr = alpha / L
-    for _ in range(n_iter):
-        W = V - (V @ G - ZD) / L
-        C_new = np.sign(W) * np.maximum(np.abs(W) - thr, 0.0)
-        t_new = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
-        V = C_new + ((t - 1.0) / t_new) * (C_new - C)
-        change = np.max(np.abs(C_new - C)) if C.size else 0.0
-        C, t = C_new, t_new
-        if change < tol:
-            break
+    ZD = np.ascontiguousarray(Z @ D.T)
+    C = np.zeros((Z.shape[0], D.shape[0])) if C0 is None else np.array(C0, dtype=float, order="C")
+    fista_codes(ZD, np.ascontiguousarray(G), L, float(alpha), C, int(n_iter), float(tol))
     return C
 
 
@@ -92,14 +83,13 @@ def _coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 - the count is returned
         C = _fista_codes(Z, D, alpha, C0=C, n_iter=60)
-        A = C.T @ C
-        B = Z.T @ C  # (p, K)
-        for k in range(n_components):
-            if A[k, k] < 1e-12:  # unused atom: re-draw from the data
-                d = Z[rng.integers(n)] + 1e-3 * rng.standard_normal(p)
-            else:
-                d = D[k] + (B[:, k] - D.T @ A[:, k]) / A[k, k]
+        A = np.ascontiguousarray(C.T @ C)
+        B = np.ascontiguousarray(Z.T @ C)  # (p, K)
+        k = update_atoms(D, A, B, 0)
+        while k < n_components:  # an unused atom: re-draw it from the data, then update the rest
+            d = Z[rng.integers(n)] + 1e-3 * rng.standard_normal(p)
             D[k] = d / max(np.linalg.norm(d), 1.0)
+            k = update_atoms(D, A, B, k + 1)
         obj = 0.5 * np.sum((Z - C @ D) ** 2) + alpha * np.abs(C).sum()
         if abs(prev - obj) <= tol * max(abs(obj), 1e-12):
             break
