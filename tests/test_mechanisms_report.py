@@ -228,6 +228,15 @@ def test_section_sentences_are_drawn_from_the_numbers():
     ) in tex
     assert "worse in 0, equal in 4, better in 0 of the 4 (activity, $N$) cells" in tex
     assert "+0.70 degrees (95\\% CI +0.70 to +0.70) at $N = 60$" in tex
+    # the pose reason: PMsame (no difference) and PMshift (+0.7 in every cell) over 2 N each
+    assert (
+        "(PM Sigma\\_w = I, PMshift against PM; 5 splits per cell): significantly worse in 4, better in 0 of 8"
+        in tex
+    )
+    assert (
+        "lies above zero (worse) at 2 and below zero (better) at 0 of the 4 (variant, $N$) pairs"
+        in tex
+    )
     assert "PMK16" not in tex and "NN1" not in tex
     assert r"\label{tab:mech-fit}" in tex
     # no variants: no section

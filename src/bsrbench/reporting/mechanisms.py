@@ -376,9 +376,13 @@ def reason_sentences(table, *, labels, base):
     L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
     out = []
     counts = verdict_counts(table)
+    pooled_n = pooled_by_n(table)
     for reason, g in counts.groupby("reason", sort=False):
         n, worse, better = int(g["cells"].sum()), int(g["worse"].sum()), int(g["better"].sum())
         names = ", ".join(L(m) for m in g["method"])
+        splits = sorted({int(j) for j in table.loc[table["reason"] == reason, "n_splits"]})
+        pn = pooled_n[pooled_n["method"].isin(g["method"]) & (pooled_n["activities"] > 0)]
+        above, below = int((pn["ci_low"] > 0).sum()), int((pn["ci_high"] < 0).sum())
         if worse * 2 > n:
             verdict = "supported: changing it makes PM significantly worse in most cells"
         elif better * 2 > n:
@@ -388,8 +392,10 @@ def reason_sentences(table, *, labels, base):
         else:
             verdict = "not supported in most cells: the difference is significant in few of them"
         out.append(
-            f"Reason ``{REASONS[reason]}'' ({names} against {L(base)}): significantly worse in {worse}, "
-            f"better in {better} of {n} cells; {verdict}."
+            f"Reason ``{REASONS[reason]}'' ({names} against {L(base)}; "
+            f"{'/'.join(map(str, splits))} splits per cell): significantly worse in {worse}, better in {better} "
+            f"of {n} cells; {verdict}. Averaged over the activities, the difference's 95\\% interval lies above "
+            f"zero (worse) at {above} and below zero (better) at {below} of the {len(pn)} (variant, $N$) pairs."
         )
     return out
 
