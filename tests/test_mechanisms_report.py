@@ -223,7 +223,7 @@ def test_section_sentences_are_drawn_from_the_numbers():
     )
     assert r"\section{Do the paper's reasons hold?}" in tex
     assert (
-        r"Removing the pose information ($\Sigma_w = I$) (PM Sigma\_w = I) changes the error against PM by "
+        r"PM Sigma\_w = I, removing the pose information ($\Sigma_w = I$): the error against PM changes by "
         r"+0.00 degrees (95\% CI +0.00 to +0.00) at $N = 30$ (mean over 2 activities)"
     ) in tex
     assert "worse in 0, equal in 4, better in 0 of the 4 (activity, $N$) cells" in tex
@@ -258,7 +258,7 @@ def test_readme_paragraph_between_markers(tmp_path):
     text = readme.read_text()
     assert "old" not in text and text.startswith("intro\n") and text.endswith("end\n")
     assert (
-        "Removing the pose information (Sigma_w = I) (PMsame) changes PM's error by +0.00 deg"
+        "PMsame, removing the pose information (Sigma_w = I): PM's error changes by +0.00 deg"
         in text
     )
     assert "+0.70 deg (95% CI +0.70 to +0.70) at N = 30" in text

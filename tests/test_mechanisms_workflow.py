@@ -47,7 +47,10 @@ def test_section_and_table_from_the_studys_tables(mech_run):
         assert r.mean_diff == pytest.approx((e[r.method] - e["PM"]).mean())
     for label in ("PM Sigma\\_w = I", "PM eta x 10", "PM one sample"):
         assert label in tex
-    assert "Removing the pose information ($\\Sigma_w = I$)" in tex
+    assert (
+        "PM Sigma\\_w = I, removing the pose information ($\\Sigma_w = I$): the error against PM"
+        in tex
+    )
     # the training error is "not recorded" unless the result rows carry it
     assert ("not recorded" in tex) != (
         "train_error" in agg.columns and agg["train_error"].notna().any()

@@ -357,10 +357,10 @@ def variant_sentences(table, *, labels, base):
         untested = int(g["untested"].sum())
         tail = f" (no test in {untested})" if untested else ""
         text = (
-            f"{change[0].upper() + change[1:]} ({L(m)}) changes the error against {L(base)} by "
+            f"{L(m)}, {change}: the error against {L(base)} changes by "
             + "; ".join(parts)
             + f". Significantly worse, equal or better than {L(base)} (Holm-adjusted $p < {cmp.ALPHA:g}$): "
-            f"{counts} of the {n} (activity, $N$) cells{tail}."
+            f"{counts} of the {n} (activity, $N$) {'cell' if n == 1 else 'cells'}{tail}."
         )
         if pooled_n["protocol"].nunique() > 1 or pooled_n["source"].nunique() > 1:
             text = (
@@ -667,7 +667,7 @@ def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, varia
         )
         n = int(g["cells"].sum())
         sentences.append(
-            f"{change[0].upper() + change[1:]} ({lab(m)}) changes {lab(base)}'s error by {at or 'nothing testable'}; "
+            f"{lab(m)}, {change}: {lab(base)}'s error changes by {at or 'nothing testable'}; "
             f"it is significantly worse in {int(g['worse'].sum())}, equal in {int(g['tied'].sum())} and better "
             f"in {int(g['better'].sum())} of {n} cells ({protocol} protocol, {source} data)."
         )
