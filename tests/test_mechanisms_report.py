@@ -253,10 +253,10 @@ def test_readme_paragraph_between_markers(tmp_path):
     src = tmp_path / "ablation-mechanisms.csv"
     df.to_csv(src, index=False)
     readme = tmp_path / "README.md"
-    readme.write_text("intro\n<!-- mechanisms -->\nold\n<!-- /mechanisms -->\nend\n")
+    readme.write_text("intro\n<!-- mechanisms -->\nOLD PARAGRAPH\n<!-- /mechanisms -->\nend\n")
     assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 0
     text = readme.read_text()
-    assert "old" not in text and text.startswith("intro\n") and text.endswith("end\n")
+    assert "OLD PARAGRAPH" not in text and text.startswith("intro\n") and text.endswith("end\n")
     assert (
         "PMsame, removing the pose information (Sigma_w = I): PM's error changes by +0.00 deg"
         in text
