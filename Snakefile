@@ -86,6 +86,7 @@ localrules:
     plot_gxy,
     plot_subjective,
     report_why_pm,
+    report_mechanisms,
     pool_chains,
     report_pdf,
     download_cmu_asf,

@@ -126,10 +126,14 @@ def test_report_has_the_convergence_table_and_the_section(ablation_run):
         "Filled markers: this study (dashed lines: contiguous protocol)" in body
         and "solid lines" not in body
     )
+    # no variant differs from PM in a mechanism option only: no section "Do the paper's reasons hold?"
+    mech = (ablation_run / "reports" / "ablation-ci" / "tables" / "mechanisms.tex").read_text()
+    assert r"\section" not in mech
     pdf = ablation_run / "reports" / "ablation-ci" / "report.pdf"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True).stdout
         assert "Why PM trails the paper here" in text and "Convergence" in text
+        assert "reasons hold" not in text
 
 
 def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_path):

@@ -28,6 +28,12 @@ number in brackets, the lowest mean of each row in bold, a dagger on the means s
 it) and the count of PM's significant differences, or, with ``--update``, replaces the text between the markers
 ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README (and between
 ``<!-- results-counts -->`` and ``<!-- /results-counts -->`` where the README has these markers).
+
+``mechanisms`` prints the README's paragraph on the paper's two reasons (:mod:`bsrbench.reporting.mechanisms`:
+each mechanism variant of PM against PM on the same splits), or, with ``--update``, writes it between
+``<!-- mechanisms -->`` and ``<!-- /mechanisms -->``::
+
+    python -m bsrbench.reporting.published mechanisms reports/published/ablation-mechanisms.csv --update README.md
 """
 
 import argparse
@@ -267,6 +273,30 @@ def update_readme(path, tables, counts=None):
     return wrote_counts
 
 
+MECHANISMS_MARKERS = ("<!-- mechanisms -->", "<!-- /mechanisms -->")
+
+
+def update_mechanisms(path, paragraph):
+    """Replace the text between :data:`MECHANISMS_MARKERS` of ``path`` with ``paragraph`` (markdown,
+    :func:`.mechanisms.readme_paragraph`). DataFileError naming ``path`` if it cannot be read or written or lacks
+    the markers (the file is then unchanged)."""
+    path = Path(path)
+    start, end = MECHANISMS_MARKERS
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"cannot read the file to update ({exc})") from exc
+    pat = re.compile(rf"({re.escape(start)}\n).*?(\n{re.escape(end)})", re.S)
+    if not pat.search(text):
+        raise DataFileError(path, f"no markers '{start}' ... '{end}' for the mechanisms paragraph")
+    text = pat.sub(lambda m: m.group(1) + paragraph + m.group(2), text)
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+
+
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).
 README_STUDY = "paper"
 
@@ -305,8 +335,29 @@ def main(argv=None):
         metavar="README",
         help="replace the marked tables in this file instead of printing",
     )
+    mp = sub.add_parser(
+        "mechanisms",
+        help="the README's paragraph on the paper's reasons from a published table "
+        "(reports/published/ablation-mechanisms.csv)",
+    )
+    mp.add_argument("table")
+    mp.add_argument(
+        "--update",
+        metavar="README",
+        help="replace the text between <!-- mechanisms --> and <!-- /mechanisms --> instead of printing",
+    )
     args = ap.parse_args(argv)
     try:
+        if args.cmd == "mechanisms":
+            from .mechanisms import readme_paragraph
+
+            df = read_results(args.table)
+            paragraph = readme_paragraph(df, cmp.comparisons(df))
+            if args.update:
+                update_mechanisms(args.update, paragraph)
+            else:
+                print(paragraph)
+            return 0
         if args.cmd == "publish":
             df = publish(args.src, args.dest, study=args.study)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
