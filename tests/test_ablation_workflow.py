@@ -144,7 +144,9 @@ def test_published_table_and_readme_tables_from_the_aggregate(ablation_run, tmp_
     pub = pd.read_csv(dest)
     assert len(pub) == 5 and "r_hat_test_error" in pub.columns
     readme = tmp_path / "README.md"
-    readme.write_text("intro\n<!-- results-table:hsc -->\nSTALE TABLE\n<!-- /results-table:hsc -->\nend\n")
+    readme.write_text(
+        "intro\n<!-- results-table:hsc -->\nSTALE TABLE\n<!-- /results-table:hsc -->\nend\n"
+    )
     # the README shows the paper protocol's tables: another study's table does not replace them (it did, silently)
     assert (
         published_main(["readme", str(dest), "--protocol", "contiguous", "--update", str(readme)])
