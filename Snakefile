@@ -1,5 +1,4 @@
-# bsrbench: Bayesian sparse-representation pose estimation, reproduced and benchmarked.
-# Entry only: configuration, validation, rule modules, and the default target.
+# bsrbench: entry point (configuration, rule modules, default target).
 from snakemake.utils import min_version
 
 min_version("9.0")
@@ -9,14 +8,13 @@ configfile: "config/datasets.yaml"
 configfile: "config/config.yaml"
 
 
-# The configuration, read, retyped, validated and checked by bsrbench.config.
+# Configuration: checked by bsrbench.config.
 include: "workflow/rules/datasets.smk"
 include: "workflow/rules/common.smk"
 
 
-# The fit, CV and chain jobs are shell commands `python -m bsrbench.jobserver job ...` (workflow/rules/fit.smk):
-# `python` is this interpreter (its directory first on PATH; a conda deployment puts its environment's first), and
-# the config key job_server reaches them as an environment variable, so switching it reruns nothing.
+# Fit jobs run this interpreter's `python` (docs/performance.md).
+# job_server is an environment variable: switching it reruns nothing.
 import os
 
 from bsrbench import jobserver
@@ -31,14 +29,11 @@ include: "workflow/rules/aggregate.smk"
 include: "workflow/rules/report.smk"
 
 
-# The job server (config key job_server) stops when this run ends and removes its files; its jobs carry this
-# process's pid so that it also stops if the run is killed (bsrbench.jobserver). Job processes inherit the
-# variable, so it names the main Snakemake process.
+# The job server stops with this run (bsrbench.jobserver).
 os.environ.setdefault(jobserver.OWNER_VAR, str(os.getpid()))
 
 
-# Under the SLURM executor: a cluster whose status command cannot follow the jobs stops the run here, before any
-# job is submitted, with what to set; a status query that keeps failing later ends the run (bsrbench.cluster).
+# SLURM: refuse a cluster whose status query cannot work (bsrbench.cluster).
 from bsrbench import cluster
 
 
@@ -70,9 +65,7 @@ rule all:
         study_targets(),
 
 
-# Under a cluster executor (profiles/slurm) these run on the submit host instead of as cluster jobs: they take
-# seconds (the aggregate table, tables, plots, the poses of a few trials, the check of a .mat file), need TeX
-# (report_pdf) or the network (downloads). The fit, CV and feature-rendering jobs are submitted.
+# Quick, TeX or network rules run on the submit host under SLURM.
 localrules:
     all,
     aggregate,

@@ -1,4 +1,4 @@
-# The study's configuration (bsrbench.config) and the input functions of the fit, aggregate and report rules.
+# The study's configuration and the rules' input functions.
 import os
 import sys
 from pathlib import Path
@@ -18,12 +18,12 @@ STUDY = load_study(
     cwd=os.getcwd(),
     validate=not workflow.modifier.skip_validation,
 )
-#: Roots of this study's results, logs and report (features and poses are shared by all studies).
+#: This study's results, logs and report folders.
 RESULTS, LOGS, REPORTS = STUDY.results, STUDY.logs, STUDY.reports
 
-# `snakemake --report` embeds the outputs as they are: refuse a table of another design.
+# `--report`: refuse a table of another design.
 check_report_is_current(STUDY, sys.argv)
-# Say before any job that the design changed under the same study name (not in spawned jobs).
+# Warn when the design changed under the same study name.
 if workflow.is_main_process and report_arg(sys.argv) is None:
     if message := design_change_message(STUDY):
         logger.warning(f"Warning: {message}")

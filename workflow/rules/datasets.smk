@@ -1,4 +1,4 @@
-# Data sets (config/datasets.yaml), checked by bsrbench.config; helpers of the mocap and features rules.
+# Data sets of config/datasets.yaml (bsrbench.config).
 from pathlib import Path
 
 from bsrbench.config import load_datasets

@@ -1,4 +1,4 @@
-# Features: the codebook of shape contexts, rendered mocap features with previews, and verified .mat features.
+# Features: codebook, rendered mocap features, checked .mat files.
 
 
 rule features_codebook:

@@ -1,6 +1,5 @@
-# Fit jobs: one per (protocol, source, activity, method, n_train, seed); CV jobs choose hyper-parameters.
-# Each shell command hands its job (params.job: input, output, wildcards; params.settings: the *_PARAMS) to
-# bsrbench.jobserver, which runs the body in bsrbench.jobs in a fork of a warm process or in-process.
+# One fit job per split and method; CV jobs choose hyper-parameters.
+# Jobs run in bsrbench.jobs, through the job server.
 
 JOB = (
     "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "
@@ -85,8 +84,7 @@ rule fit:
         JOB.format(target="bsrbench.jobs:fit")
 
 
-# Methods with `chains: C` > 1: C chain jobs per split (one MCMC chain per process, sampler seed
-# method_seed + chain), pooled into the split's result row and predictions by pool_chains.
+# `chains: C` > 1: one job per chain, pooled per split.
 rule fit_chain:
     input:
         features="results/features/{source}/{activity}.npz",

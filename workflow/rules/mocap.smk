@@ -1,4 +1,4 @@
-# Motion capture: CMU trial download (ASF/AMC) and pose extraction (positions + 57 angles of the chosen frames).
+# Motion capture: CMU downloads and pose extraction.
 
 
 rule download_cmu_asf:

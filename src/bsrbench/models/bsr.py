@@ -153,9 +153,8 @@ class BayesianSR(RegressorMixin, BaseEstimator):
     input_scaling : {"pooled", "bin", "none"}, default="pooled"
         Scaling of X (:class:`bsrbench.models.scaling.InputScaler`): each feature centred and all divided by
         one pooled scale, chosen by blocked 5-fold CV on training frames (:mod:`bsrbench.models.scaling`:
-        5.19 deg at N = 30 against 6.04 for floored per-bin scaling and 6.62 for raw counts).
-        The former per-feature standardization let the prediction explode off the training range (issue 14:
-        3.6e7 deg on a contiguous split of the acrobatics features): the model is linear in x.
+        5.19 deg at N = 30 against 6.04 for floored per-bin scaling and 6.62 for raw counts; why an
+        unfloored per-feature scale fails off the training range: docs/scaling.md).
     random_state : int, RandomState instance or None, default=None
         Seed of the sampler (and of the per-test-point prediction streams).
     verbose : bool, default=False
