@@ -467,3 +467,53 @@ def test_a_damaged_job_npz_names_the_file_and_what_to_do(tmp_path):
             read_npz(bad)
     with pytest.raises(DataFileError, match=r"chain0\.npz.*missing array\(s\) \['test'\]"):
         read_npz(good, ("test", "y_pred"))
+
+
+def test_pooled_scores_come_from_the_chains_draws_and_training_predictions(chains):
+    """The pooled row's train_error is the error of the chains' mean training prediction, its scores are the
+    sample scores of the chains' kept draws (each chain weighted equally), and its PIT values are theirs."""
+    from bsrbench import scores
+    from bsrbench.metrics import mean_angle_error
+
+    spec, feats, cs = chains
+    row, arrays = pool_chains(spec, feats, cs, estimator=BSR, params=PARAMS)
+    transform = get_pose_transform("heading", column=2)
+    train, test = cs[0]["train"], cs[0]["test"]
+    z_train = np.mean([c["z_train"] for c in cs], axis=0)
+    assert row["train_error"] == pytest.approx(
+        mean_angle_error(feats["Y"][train], transform.inverse(z_train)), rel=1e-12
+    )
+    draws = np.concatenate([c["score_draws"].astype(float) for c in cs], axis=1)
+    w = np.concatenate([c["score_weights"] / 3 for c in cs], axis=1)
+    assert draws.shape[1] == 3 * cs[0]["score_draws"].shape[1]
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-12)
+    y = feats["Y"][test]
+    assert row["scores_from"] == "samples"
+    assert row["crps"] == pytest.approx(scores.sample_crps(y, draws, w), rel=1e-12)
+    assert row["nlpd"] == pytest.approx(
+        scores.sample_nlpd(y, draws, arrays["y_pred"], w), rel=1e-12
+    )
+    np.testing.assert_allclose(arrays["pit"], scores.sample_pit(y, draws, w), atol=1e-6)
+    # bare synthetic arrays name no data source, hence no skeleton and no joint-position error
+    assert row["mpjpe_mm"] is None and row["pa_mpjpe_mm"] is None
+
+
+def test_a_gaussian_method_pooled_from_one_chain_scores_as_its_fit(tmp_path):
+    """RVM (a predictive std, no draws) as one chain: the pooled row's proper scores, training error and
+    split-conformal coverage equal those of the plain fit job on the same split."""
+    feats = _features(tmp_path)
+    spec = JobSpec("syn", "act", "RVM", 40, 0, min_test=50)
+    rvm = "bsrbench.models.rvm:RVM"
+    row, _ = run_job(spec, feats, estimator=rvm, params={}, conformal_level=0.9)
+    chain = run_chain(spec, feats, estimator=rvm, params={}, chain=0, conformal_level=0.9)
+    pooled, arrays = pool_chains(spec, feats, [chain], estimator=rvm, params={})
+    assert row["scores_from"] == pooled["scores_from"] == "gaussian"
+    for key in ("nlpd", "crps", "train_error", "conformal_coverage", "conformal_level"):
+        assert pooled[key] == pytest.approx(row[key], rel=1e-9), key
+    assert 0 < row["conformal_coverage"] <= 1 and row["conformal_level"] == 0.9
+    assert (
+        arrays["conformal_radius"].shape == (5,) and np.isfinite(arrays["conformal_radius"]).all()
+    )
+    # without a level, no conformal refit
+    row, arrays = run_job(spec, feats, estimator=rvm, params={})
+    assert row["conformal_coverage"] is None and "conformal_radius" not in arrays

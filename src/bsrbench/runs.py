@@ -5,6 +5,7 @@ Section "Experimental Results"): error = mean over the 57 angles of the per-angl
 over 10 random splits. Nothing here reads Snakemake objects or the configuration: the jobs pass plain values.
 """
 
+import math
 import platform
 import time
 from dataclasses import dataclass
@@ -16,24 +17,29 @@ from .convergence import convergence_summary
 from .errors import InputError
 from .estimators import make_estimator, supports_std
 from .io import to_builtin
-from .metrics import interval_coverage, mean_angle_error, per_angle_rms
+from .metrics import extra_scores, interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
 from .seeds import split_seed
 
 #: Nominal levels of the central predictive intervals whose empirical coverage every job records.
 COVERAGE_LEVELS = (0.5, 0.6, 0.7, 0.8, 0.9, 0.95)
 _VERSION_PACKAGES = ("bsrbench", "numpy", "scipy", "scikit-learn", "numba")
+#: Posterior predictive draws per chain that a chain file keeps for the sample scores of its pooled split
+#: (evenly spaced over the chain's retained samples; float32).
+SCORE_DRAWS_PER_CHAIN = 25
 
 
 @dataclass(frozen=True)
 class Split:
-    """A job's data on its split: features ``X``, angles ``Y``, ``train``/``test`` indices, pose transform."""
+    """A job's data on its split: features ``X``, angles ``Y``, ``train``/``test`` indices, pose transform and
+    the :class:`bsrbench.kinematics.PoseSkeleton` that turns angles into joint positions."""
 
     X: np.ndarray
     Y: np.ndarray
     train: np.ndarray
     test: np.ndarray
     transform: object
+    skeleton: object
 
     def fit(self, estimator, params, random_state):
         """The estimator at ``estimator`` with ``params``, fitted on the training frames; and the seconds."""
@@ -48,7 +54,65 @@ def prepare_split(spec, features):
     X, Y = features["X"], features["Y"]
     train, test = spec.split(X.shape[0], features.get("trials"))
     transform = get_pose_transform(spec.pose_transform, column=features.get("heading_column", 2))
-    return Split(X, Y, train, test, transform)
+    return Split(X, Y, train, test, transform, _skeleton(spec, features))
+
+
+def _skeleton(spec, features):
+    """The pose skeleton of a data set's features; None for bare arrays that name no data source (e.g. the
+    tests' synthetic features), which then get no joint-position errors."""
+    from .kinematics import features_pose_skeleton
+
+    if "source" not in features.get("meta", {}):
+        return None
+    records = {**features.get("meta", {}), "Y": features["Y"]}
+    if "angle_names" in features:
+        records["angle_names"] = features["angle_names"]
+    return features_pose_skeleton(records, f"{spec.source}/{spec.activity}")
+
+
+def angle_draws(transform, draws):
+    """Draws (n, S, outputs) in the transformed pose space mapped back to angles (n, S, 57)."""
+    n, S, d = draws.shape
+    return transform.inverse(draws.reshape(n * S, d)).reshape(n, S, -1)
+
+
+def _scored_draws(spec, split, est, X_test):
+    """PM's posterior predictive draws of the test angles and their weights, or ``(None, None)``."""
+    if not hasattr(est, "predict_draws"):
+        return None, None
+    from .scores import predictive_draws
+
+    draws, weights = predictive_draws(est, X_test, seed=spec.method_seed)
+    return angle_draws(split.transform, draws), weights
+
+
+def _train_error(split, z_train):
+    """The paper's error on the training frames from their predictions in the transformed space."""
+    return mean_angle_error(split.Y[split.train], split.transform.inverse(z_train))
+
+
+def _conformal(spec, split, est, level):
+    """Split-conformal radius and test coverage at ``level`` for a method with a predictive std; else None."""
+    if level is None or not supports_std(est):
+        return None
+    from .scores import split_conformal
+
+    # A quarter of the training frames calibrate, but at least the ceil(level / (1 - level)) frames (9 at 0.9)
+    # below which the conformal radius is infinite.
+    n_min = math.ceil(float(level) / (1.0 - float(level)) - 1e-9)
+    fraction = max(0.25, n_min / split.train.size)
+    out = split_conformal(
+        est,
+        split.X[split.train],
+        split.Y[split.train],
+        split.X[split.test],
+        split.Y[split.test],
+        transform=split.transform,
+        level=float(level),
+        fraction=fraction,
+        seed=spec.method_seed,
+    )
+    return {**out, "level": float(level)}
 
 
 def inverse_std(transform, Z_mean, Z_std):
@@ -149,11 +213,15 @@ def trace_arrays(est):
     return out
 
 
-def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=None):
+def run_job(
+    spec, features, *, estimator, params, cv_mode="none", cv_seconds=None, conformal_level=None
+):
     """Fit ``estimator`` (dotted path) with ``params`` on the training frames of ``spec``'s split.
 
     Returns ``(row, arrays)``: the tidy result row (JSON-ready dict) and the arrays to save
-    (test indices, true and predicted angles, predictive std if any, and the sampler trace if any).
+    (test indices, true and predicted angles, predictive std if any, PIT values if scored, and the sampler
+    trace if any). ``conformal_level``: level of the split-conformal reference interval of a method with a
+    predictive std (None: none).
     """
     split = prepare_split(spec, features)
     est, fit_seconds = split.fit(estimator, params, spec.method_seed)
@@ -164,6 +232,7 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     else:
         Z_mean, Z_std = est.predict(X_test), None
     predict_seconds = time.perf_counter() - t0
+    samples, weights = _scored_draws(spec, split, est, X_test)
     row, arrays = _score(
         spec,
         split,
@@ -175,6 +244,10 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
         Z_std=Z_std,
         fit_seconds=fit_seconds,
         predict_seconds=predict_seconds,
+        samples=samples,
+        weights=weights,
+        train_error=_train_error(split, est.predict(split.X[split.train])),
+        conformal=_conformal(spec, split, est, conformal_level),
     )
     arrays.update(trace_arrays(est))
     return row, arrays
@@ -192,9 +265,14 @@ def _score(
     Z_std,
     fit_seconds,
     predict_seconds,
+    samples=None,
+    weights=None,
+    train_error=None,
+    conformal=None,
 ):
     """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
-    transformed pose space."""
+    transformed pose space; ``samples`` (n, S, 57) and ``weights`` (n, S): posterior predictive draws of the
+    test angles, scored in place of the Gaussian (:func:`bsrbench.metrics.extra_scores`)."""
     test, transform = split.test, split.transform
     Y_true = split.Y[test]
     Z_mean = np.asarray(Z_mean, dtype=float)
@@ -220,6 +298,7 @@ def _score(
         "split_seed": split_seed(spec.source, spec.activity, spec.n_train, spec.seed),
         "method_seed": spec.method_seed,
         "error": mean_angle_error(Y_true, Y_pred),
+        "train_error": train_error,
         "per_angle_rms": rms.tolist(),
         "fit_seconds": fit_seconds,
         "predict_seconds": predict_seconds,
@@ -236,7 +315,40 @@ def _score(
         row["coverage"] = row["coverage_90"]
         arrays["y_std"] = Y_std
     else:
+        Y_std = None
         row["coverage"] = None
+    if split.skeleton is not None:
+        row.update(
+            extra_scores(
+                Y_true,
+                Y_pred,
+                source=f"{spec.source}/{spec.activity}",
+                skeleton=split.skeleton,
+                std=Y_std,
+                samples=samples,
+                weights=weights,
+            )
+        )
+    else:
+        from .scores import proper_scores
+
+        row.update(mpjpe_mm=None, pa_mpjpe_mm=None)
+        row.update(proper_scores(Y_true, Y_pred, std=Y_std, samples=samples, weights=weights))
+    if row["scores_from"] is not None:
+        from .scores import gaussian_pit, sample_pit
+
+        pit = (
+            sample_pit(Y_true, samples, weights)
+            if samples is not None
+            else gaussian_pit(Y_true, Y_pred, Y_std)
+        )
+        arrays["pit"] = np.asarray(pit, dtype=np.float32)
+    if conformal is not None:
+        row["conformal_level"] = conformal.get("level")
+        row["conformal_coverage"] = conformal["conformal_coverage"]
+        arrays["conformal_radius"] = np.asarray(conformal["conformal_radius"], dtype=float)
+    else:
+        row["conformal_level"] = row["conformal_coverage"] = None
     return to_builtin(row), arrays
 
 
@@ -251,14 +363,18 @@ def chain_seed(method_seed, chain):
     return (int(method_seed) + int(chain)) % 2**32
 
 
-def run_chain(spec, features, *, estimator, params, chain):
+def run_chain(spec, features, *, estimator, params, chain, conformal_level=None):
     """One MCMC chain of ``spec``'s split: fit with :func:`chain_seed`, predict the test frames.
 
     Returns a dict of arrays (the chain file): ``train``, ``test``, ``z_mean`` and ``z_var`` (predictive mean
     and variance per test frame in the transformed pose space; ``z_var`` is absent if the estimator gives no
-    std), ``trace_<name>`` (per-sweep traces), ``draw_error`` (test error in degrees of each retained
-    posterior sample, when the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs),
-    weights)`` in the units of the fitted Y), ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
+    std), ``z_train`` (prediction of the training frames), ``trace_<name>`` (per-sweep traces), and, when
+    the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs), weights)`` in the units of the
+    fitted Y: ``draw_error`` (test error in degrees of each retained posterior sample) and
+    ``score_draws`` / ``score_weights`` (:data:`SCORE_DRAWS_PER_CHAIN` posterior predictive draws of the test
+    angles, noise included, and their weights renormalised). Chain 0 of a method with a predictive std also
+    holds the split-conformal ``conformal_radius``, ``conformal_coverage`` and ``conformal_level`` when
+    ``conformal_level`` is set. Then ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
     ``predict_seconds``.
     """
     split = prepare_split(spec, features)
@@ -286,7 +402,20 @@ def run_chain(spec, features, *, estimator, params, chain):
                 for i in range(draws.shape[1])
             ]
         )
+        samples, weights = _scored_draws(spec, split, est, X_test)
+        keep = np.unique(
+            np.linspace(0, samples.shape[1] - 1, SCORE_DRAWS_PER_CHAIN).round().astype(int)
+        )
+        w = np.asarray(weights, dtype=float)[:, keep]
+        out["score_draws"] = samples[:, keep, :].astype(np.float32)
+        out["score_weights"] = w / w.sum(axis=1, keepdims=True)
     predict_seconds = time.perf_counter() - t0
+    out["z_train"] = np.asarray(est.predict(split.X[split.train]), dtype=float)
+    conformal = _conformal(spec, split, est, conformal_level) if int(chain) == 0 else None
+    if conformal is not None:
+        out["conformal_radius"] = np.asarray(conformal["conformal_radius"], dtype=float)
+        out["conformal_coverage"] = np.float64(conformal["conformal_coverage"])
+        out["conformal_level"] = np.float64(conformal["level"])
     out.update(trace_arrays(est))
     out.update(
         chain=np.int64(chain),
@@ -306,7 +435,9 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
     ``mean_c(var_c + mean_c^2) - mean^2``. The row is :func:`run_job`'s plus ``n_chains``, ``chain_seeds`` and
     the :func:`bsrbench.convergence.convergence_summary`; ``fit_seconds`` and ``predict_seconds`` are summed
     over chains. The arrays are :func:`run_job`'s plus ``chain_trace_<name>`` (chains, sweeps) and
-    ``chain_draw_error`` (chains, samples).
+    ``chain_draw_error`` (chains, samples). The proper scores come from the chains' ``score_draws``, each chain
+    weighted equally, the training error from the mean of their ``z_train``, and the split-conformal interval
+    from chain 0.
     """
     if not chains:
         raise InputError(f"{spec.method}: no chains to pool")
@@ -323,6 +454,26 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
         variances = np.stack([np.asarray(c["z_var"], dtype=float) for c in chains])
         second = np.mean(variances + means**2, axis=0)
         z_std = np.sqrt(np.maximum(second - z_mean**2, 0.0))
+    samples = weights = None
+    if all("score_draws" in c for c in chains):
+        samples = np.concatenate(
+            [np.asarray(c["score_draws"], dtype=float) for c in chains], axis=1
+        )
+        weights = np.concatenate(
+            [np.asarray(c["score_weights"], dtype=float) / len(chains) for c in chains], axis=1
+        )
+    train_error = None
+    if all("z_train" in c for c in chains):
+        z_train = np.mean([np.asarray(c["z_train"], dtype=float) for c in chains], axis=0)
+        train_error = _train_error(split, z_train)
+    first = next((c for c in chains if int(c["chain"]) == 0), None)
+    conformal = None
+    if first is not None and "conformal_radius" in first:
+        conformal = {
+            "conformal_radius": first["conformal_radius"],
+            "conformal_coverage": float(first["conformal_coverage"]),
+            "level": float(first["conformal_level"]),
+        }
     row, arrays = _score(
         spec,
         split,
@@ -334,6 +485,10 @@ def pool_chains(spec, features, chains, *, estimator, params, cv_mode="none", cv
         Z_std=z_std,
         fit_seconds=float(sum(float(c["fit_seconds"]) for c in chains)),
         predict_seconds=float(sum(float(c["predict_seconds"]) for c in chains)),
+        samples=samples,
+        weights=weights,
+        train_error=train_error,
+        conformal=conformal,
     )
     row["n_chains"] = len(chains)
     row["chain_seeds"] = [int(c["seed"]) for c in chains]

@@ -138,6 +138,8 @@ def predictive_draws(estimator, X, seed=0):
     draws, weights = estimator.predict_draws(X)
     draws = np.asarray(draws, dtype=float)
     g = np.asarray(estimator.samples_["g_ny"], dtype=float).ravel()
+    # The prediction uses the last draws.shape[1] retained samples (BayesianSR's n_predict_samples).
+    g = g[g.size - draws.shape[1] :] if g.size >= draws.shape[1] else g
     if g.size != draws.shape[1]:
         raise InputError(
             f"{type(estimator).__name__}: {g.size} noise precisions for {draws.shape[1]} draws per frame"
