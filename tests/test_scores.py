@@ -149,6 +149,10 @@ def test_extra_scores_for_the_job_layer():
     draws = p[:, None] + 4 * rng.normal(size=(8, 50, 57))
     s = extra_scores(y, p, source="hsc", skeleton=ps, std=sd, samples=draws)
     assert s["scores_from"] == "samples" and s["crps"] == pytest.approx(S.sample_crps(y, draws))
+    # the NLPD takes the std when given (the draws' exact moments), the draws' moment match otherwise
+    assert s["nlpd"] == pytest.approx(g["nlpd"])
+    m = extra_scores(y, p, source="hsc", skeleton=ps, samples=draws)
+    assert m["nlpd"] == pytest.approx(S.sample_nlpd(y, draws, p)) and m["nlpd"] != s["nlpd"]
     p[3, 10] = np.nan
     with pytest.raises(InputError, match=r"hsc \(hsc\): y_pred contains NaN at row 3, column 10"):
         extra_scores(y, p, source="hsc", skeleton=ps, std=sd)

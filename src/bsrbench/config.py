@@ -29,7 +29,17 @@ SCHEMAS = Path(__file__).resolve().parents[2] / "workflow" / "schemas"
 KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
 MOTION_FORMATS = ("bvh", "amc")
 #: The modules of a job's logic: an edit of one reruns the fit and CV jobs.
-JOB_MODULES = ("bsrbench.runs", "bsrbench.splits", "bsrbench.estimators", "bsrbench.io")
+JOB_MODULES = (
+    "bsrbench.runs",
+    "bsrbench.splits",
+    "bsrbench.estimators",
+    "bsrbench.io",
+    "bsrbench.poses",
+    "bsrbench.metrics",
+    "bsrbench.scores",
+    "bsrbench.kinematics",
+    "bsrbench.tuning",
+)
 #: The paper's eight activities (Table I: Acrobatics, Navigate, Golf; Table II: the other five).
 PAPER_ACTIVITIES = [
     ("Table I", "Acrobatics"),
@@ -895,6 +905,10 @@ class Study:
     def method_labels(self):
         """{method: label} for every method run, in table order."""
         return {m: self.method(m).get("label", m) for m in self.run}
+
+    def method_groups(self):
+        """{method: its table block, "paper" or "today"} for every method run (methods.<M>.group)."""
+        return {m: self.method(m).get("group") or "paper" for m in self.run}
 
     def n_chains(self, name):
         """MCMC chains per split of a method (methods.<M>.chains, default 1)."""

@@ -13,9 +13,9 @@ is the sample estimate of ``scoringrules.crps_ensemble``: for equal weights the 
 estimator ("pwm"), equal to the "fair" one and unbiased for the CRPS of the distribution the draws come from
 (Ferro 2014; Zamo and Naveau 2018), in O(S log S) per angle where the pairwise "fair" form needs O(S^2) memory;
 for weighted draws the CRPS of their weighted empirical distribution ("int"). The NLPD of draws is that of the
-Gaussian with their (weighted) mean and variance, a moment match: up to Monte Carlo error the Gaussian whose std
-PM's ``predict(X, return_std=True)`` reports (a kernel density estimate per angle would add a bandwidth to
-choose). A sample CRPS and a closed-form CRPS estimate the same quantity but are not strictly comparable at small
+Gaussian with their mean and variance: PM's ``predict(X, return_std=True)`` std when given (the exact moments of
+the mixture the draws sample), else a moment match of the draws (a kernel density estimate per angle would add a
+bandwidth to choose). A sample CRPS and a closed-form CRPS estimate the same quantity but are not strictly comparable at small
 sample sizes (Zamo and Naveau, Math. Geosci. 2018).
 
 Angles wrap: the error of a prediction is the wrapped difference ``((y - mu + 180) mod 360) - 180``, and every
@@ -298,8 +298,9 @@ def split_conformal(
 
 # ------------------------------------------------------------------------------------------------ one call
 def proper_scores(y_true, y_pred, *, std=None, samples=None, weights=None, what="scores"):
-    """``{"nlpd", "crps", "scores_from"}`` of one test set: from ``samples`` (n, S, d) if given (moment-matched
-    NLPD around ``y_pred``, unbiased sample CRPS), else from the Gaussian ``(y_pred, std)``; all None (not NaN, not 0)
+    """``{"nlpd", "crps", "scores_from"}`` of one test set: from ``samples`` (n, S, d) if given (sample CRPS;
+    the NLPD of the Gaussian ``(y_pred, std)`` if ``std`` is given, else moment-matched around ``y_pred``),
+    else from the Gaussian ``(y_pred, std)``; all None (not NaN, not 0)
     when neither is given. ``weights`` (n, S): the draws' weights (None: equal). ``scores_from`` is
     ``"samples"``, ``"gaussian"`` or None.
 
@@ -316,8 +317,15 @@ def proper_scores(y_true, y_pred, *, std=None, samples=None, weights=None, what=
     check_finite(y_true, "y_true", what)
     check_finite(y_pred, "y_pred", what)
     if samples is not None:
+        # With both, the NLPD takes the std: the exact moments of the mixture the draws sample (PM's
+        # predict(X, return_std=True)), where a moment match of few draws would be noisy.
+        nlpd = (
+            gaussian_nlpd(y_true, y_pred, std, what)
+            if std is not None
+            else sample_nlpd(y_true, samples, y_pred, weights, what)
+        )
         return {
-            "nlpd": sample_nlpd(y_true, samples, y_pred, weights, what),
+            "nlpd": nlpd,
             "crps": sample_crps(y_true, samples, weights, what),
             "scores_from": "samples",
         }

@@ -42,6 +42,7 @@ wildcard_constraints:
 
 method_setting = STUDY.method
 method_labels = STUDY.method_labels
+method_groups = STUDY.method_groups
 method_regex = STUDY.method_regex
 skipped_notes = STUDY.skipped_notes
 fit_targets = STUDY.fit_targets
@@ -144,6 +145,20 @@ def subjective_motion(wildcards):
         for a in config["study_activities"][s]
         if is_motion(s, a)
     }
+
+
+def pit_inputs():
+    """(predictions file, (source, method)) of the PIT figure: every table method's fits at the largest N run
+    per activity, all seeds, first protocol (methods without a predictive distribution have no PIT values).
+    """
+    p = STUDY.protocols[0]
+    out = []
+    for s, a in STUDY.pairs:
+        n = STUDY.largest_run_n(p, s, a)
+        for m in table_methods():
+            for seed in STUDY.seeds:
+                out.append((f"{RESULTS}/fit/{p}/{s}/{a}/{m}/n{n}/seed{seed}.npz", (s, m)))
+    return out
 
 
 def trace_input(wildcards):

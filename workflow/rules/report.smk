@@ -24,6 +24,7 @@ rule table:
         design=study_design(),
         methods=table_methods(),
         labels=method_labels(),
+        groups=method_groups(),
         n_train=config["n_train"],
         protocols=config["protocols"],
         status=lambda w: data_status(w.source),
@@ -236,6 +237,55 @@ rule report_mechanisms:
         "../scripts/report_mechanisms.py"
 
 
+rule plot_pit:
+    input:
+        results=f"{RESULTS}/aggregate/results.csv",
+        predictions=lambda w: [f for f, _ in pit_inputs()],
+    output:
+        pdf=f"{REPORTS}/figures/pit.pdf",
+        png=report(
+            f"{REPORTS}/figures/pit.png",
+            category="Figures",
+            caption="../report/pit.rst",
+        ),
+    log:
+        f"{LOGS}/report/pit.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        panels=[k for _, k in pit_inputs()],
+        labels=method_labels(),
+    script:
+        "../scripts/plots_pit.py"
+
+
+rule report_today:
+    input:
+        results=f"{RESULTS}/aggregate/results.csv",
+        comparisons=f"{RESULTS}/aggregate/comparisons.csv",
+    output:
+        section=f"{REPORTS}/tables/today.tex",
+        table=report(
+            f"{REPORTS}/tables/uncertainty.csv",
+            category="Tables",
+            caption="../report/uncertainty.rst",
+        ),
+    log:
+        f"{LOGS}/report/today.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        design=study_design(),
+        methods=table_methods(),
+        groups=method_groups(),
+        labels=method_labels(),
+        pit_figure="figures/pit.pdf",
+    script:
+        "../scripts/report_today.py"
+
+
 rule plot_subjective:
     input:
         unpack(subjective_inputs),
@@ -278,6 +328,8 @@ rule report_pdf:
         why_pm=rules.report_why_pm.output.section,
         why_pm_figures=why_pm_figures("pdf"),
         mechanisms=rules.report_mechanisms.output.section,
+        today=rules.report_today.output.section,
+        pit=rules.plot_pit.output.pdf,
     output:
         report(f"{REPORTS}/report.pdf", category="Report", caption="../report/report.rst"),
     log:

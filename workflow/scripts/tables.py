@@ -6,7 +6,7 @@ sys.stderr = open(snakemake.log[0], "w")
 
 from bsrbench.reporting.comparisons import read_comparisons, tied_with_best
 from bsrbench.reporting.tables import (
-    latex_table,
+    latex_tables,
     read_paper_tables,
     read_results,
     summarize,
@@ -14,12 +14,13 @@ from bsrbench.reporting.tables import (
 )
 
 sm = snakemake
-text = latex_table(
+text = latex_tables(
     summarize(read_results(sm.input.results, design=dict(sm.params.design))),
     read_paper_tables(sm.input.paper),
     source=sm.wildcards.source,
     table=sm.wildcards.table,
     methods=list(sm.params.methods),
+    groups=dict(sm.params.groups),
     labels=dict(sm.params.labels),
     n_train=list(sm.params.n_train),
     status=dict(sm.params.status),

@@ -311,6 +311,8 @@ def latex_table(
     skipped=None,
     frames=None,
     ties=None,
+    best_of=None,
+    block=None,
 ):
     """LaTeX (booktabs) for one of the paper's tables on one data source, one tabular per protocol.
 
@@ -333,8 +335,13 @@ def latex_table(
         statistically indistinguishable from it (:func:`bsrbench.reporting.comparisons.tied_with_best`); their
         means get :data:`TIE_MARK` unless bold. None: no comparisons, no marks (the caption says so); a cell
         missing from it had no test (fewer than 2 common splits).
+    best_of : the methods among which a row's best is bolded (default ``methods``): all the study's table
+        methods when ``methods`` is one block of them.
+    block : None for the paper's methods, or the caption's name of another block (e.g. "today's baselines"),
+        whose table gets no rows of the paper's numbers and a label ending in ``-today``.
     """
     skipped = skipped or {}
+    best_of = list(best_of or methods)
     frames = frames or {}
     if table not in PAPER_TABLES:
         raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
@@ -349,18 +356,23 @@ def latex_table(
     ]
     for protocol in protocols:
         sp = s[s["protocol"] == protocol]
+        which = f" ({latex_escape(block)})" if block else ""
+        best = (
+            "best of each row (of both tables)" if best_of != list(methods) else "best of each row"
+        )
         caption = (
-            f"Table {table} on the {latex_escape(source)} data, protocol ``{latex_escape(protocol)}'': "
-            r"mean error $\pm$ std (degrees) over seeds; best of each row in bold. "
+            f"Table {table}{which} on the {latex_escape(source)} data, protocol "
+            f"``{latex_escape(protocol)}'': "
+            rf"mean error $\pm$ std (degrees) over seeds; {best} in bold. "
             + tie_caption(ties, protocol=protocol, source=source)
         )
-        if protocol == "random":
+        if protocol == "random" and not block:
             caption += " Italic rows: the paper's numbers."
         out += [
             r"\begin{table}[H]",
             r"\centering\footnotesize\setlength{\tabcolsep}{3.5pt}",
             rf"\caption{{{caption}}}",
-            rf"\label{{tab:{table}-{source}-{protocol}}}",
+            rf"\label{{tab:{table}-{source}-{protocol}{'-today' if block else ''}}}",
             # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
             r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{3.1cm}r"
             + "c" * len(methods)
@@ -401,7 +413,12 @@ def latex_table(
                     float(cell.at[m, "mean"]) if m in cell.index else math.nan for m in methods
                 ]
                 stds = [float(cell.at[m, "std"]) if m in cell.index else math.nan for m in methods]
-                bold = best_mask(means, digits)
+                others = [
+                    float(cell.at[m, "mean"])
+                    for m in best_of
+                    if m not in methods and m in cell.index
+                ]
+                bold = best_mask(means + others, digits)[: len(means)]
                 tied = (ties or {}).get((protocol, source, activity, n), set())
                 out.append(
                     _row(
@@ -412,7 +429,7 @@ def latex_table(
                         ]
                     )
                 )
-                if protocol != "random":
+                if protocol != "random" or block:
                     continue
                 pc = p[(p["key"] == paper_key(paper_name)) & (p["n_train"] == n)].set_index(
                     "method"
@@ -445,6 +462,25 @@ def latex_table(
             out.append(r"\par\smallskip{\scriptsize Frames. " + latex_escape(text) + ".}")
         out += [r"\end{table}", ""]
     return "\n".join(out)
+
+
+def table_blocks(methods, groups, reference="PM"):
+    """``[(block, methods), ...]`` of the tables: the paper's methods (block None), then, if any, today's
+    baselines (``groups[m] == "today"``) beside ``reference`` (the paper's PM, when it is a table method)."""
+    paper = [m for m in methods if groups.get(m, "paper") != "today"]
+    today = [m for m in methods if groups.get(m, "paper") == "today"]
+    out = [(None, paper)] if paper else []
+    if today:
+        out.append(("today's baselines", ([reference] if reference in paper else []) + today))
+    return out
+
+
+def latex_tables(summary, paper, *, methods, groups, reference="PM", **kwargs):
+    """:func:`latex_table` for each block of :func:`table_blocks`, bolding the best over all ``methods``."""
+    return "\n".join(
+        latex_table(summary, paper, methods=ms, best_of=methods, block=block, **kwargs)
+        for block, ms in table_blocks(methods, groups, reference)
+    )
 
 
 def write_text(path, text):
