@@ -7,6 +7,7 @@ so that anyone can regenerate and check the README's tables without rerunning th
 
     python -m bsrbench.reporting.published publish results/paper/aggregate/results.csv reports/published/paper.csv
     python -m bsrbench.reporting.published readme reports/published/paper.csv --update README.md
+    python -m bsrbench.reporting.published readme reports/published/paper.csv --update docs/results.md
 
 ``publish`` checks the table (key columns, no duplicate job, every convergence column) before writing it, and that
 it is the table of the study the destination is named after: the study is the folder ``<study>`` of
@@ -26,8 +27,10 @@ refit), with exactly the columns of :data:`bsrbench.reporting.comparisons.PUBLIS
 ``readme`` prints the markdown tables (one per data source, random protocol: mean +- std over seeds, the paper's
 number in brackets, the lowest mean of each row in bold, a dagger on the means statistically indistinguishable from
 it) and the count of PM's significant differences, or, with ``--update``, replaces the text between the markers
-``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` of the README (and between
-``<!-- results-counts -->`` and ``<!-- /results-counts -->`` where the README has these markers).
+``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->`` (docs/results.md), between
+``<!-- results-summary -->`` and ``<!-- /results-summary -->`` (the README: per method, the means over the cells,
+:func:`readme_summary`) and between ``<!-- results-counts -->`` and ``<!-- /results-counts -->``, where the file has
+these markers.
 
 ``mechanisms`` prints the README's paragraph on the paper's two reasons (:mod:`bsrbench.reporting.mechanisms`:
 each mechanism variant of PM against PM on the same splits), or, with ``--update``, writes it between
@@ -52,7 +55,15 @@ from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_re
 
 #: Column order of the README's tables, and their labels.
 README_METHODS = ("RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge")
-README_LABELS = {"NN1": "1-NN"}
+#: Today's baselines (``group: today`` in config/config.yaml and config/paper.yaml), in italics in the summary.
+TODAY_METHODS = ("KNN", "KRR", "GP", "RF", "MLP")
+README_LABELS = {
+    "NN1": "1-NN",
+    "KNN": "k-NN",
+    "KRR": "kernel ridge",
+    "GP": "GP (ARD)",
+    "RF": "random forest",
+}
 _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tables.csv"
 
 
@@ -205,6 +216,73 @@ def readme_tables(
     return out
 
 
+def readme_summary(df, paper=None, *, protocol="random", labels=None, comparisons=None, digits=2):
+    """Markdown table: per method (the paper's, then today's baselines in italics) and data source, the mean over
+    the (activity, N) cells of the mean angle error (degrees), of the MPJPE (mm, where recorded) and of the
+    method's rank in the cell (1: lowest mean error), and in how many cells the method is the best or
+    statistically indistinguishable from it; and its legend. With ``paper`` (:func:`.tables.read_paper_tables`),
+    the paper's mean over the same cells follows a paper method's error in brackets."""
+    labels = {**README_LABELS, **(labels or {})}
+    d = df[df["protocol"] == protocol]
+    if d.empty:
+        raise InputError(f"no rows of protocol {protocol!r} to summarise")
+    if comparisons is None:
+        comparisons = cmp.comparisons(d)
+    ties = cmp.tied_with_best(comparisons)
+    sources = list(dict.fromkeys(d["source"]))
+    present = set(d["method"])
+    order = [m for m in README_METHODS + TODAY_METHODS if m in present]
+    order += sorted(present - set(order))
+    cells = d.groupby(["source", "activity", "n_train", "method"])
+    err = cells["error"].mean()
+    keys = summarize(d).drop_duplicates(["source", "activity", "n_train"])
+    keys = keys.set_index(["source", "activity", "n_train"])["key"]
+    rank = err.groupby(level=["source", "activity", "n_train"]).rank(method="average")
+    mpjpe = cells["mpjpe_mm"].mean() if "mpjpe_mm" in d.columns else None
+    head = ["method"]
+    for src in sources:
+        head += [f"{src} error (°)", f"{src} MPJPE (mm)", f"{src} rank", f"{src} best or tied"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for m in order:
+        name = labels.get(m, m)
+        row = [f"*{name}*" if m in TODAY_METHODS else name]
+        for src in sources:
+            e = err.xs((src, m), level=("source", "method"))
+            txt = f"{e.mean():.{digits}f}"
+            if paper is not None:
+                theirs = []
+                for a, n in e.index.to_list():
+                    key = keys.get((src, a, n), "")
+                    hit = paper[
+                        (paper["key"] == key) & (paper["n_train"] == n) & (paper["method"] == name)
+                    ]
+                    if key and len(hit):
+                        theirs.append(float(hit["mean_deg"].iloc[0]))
+                if theirs and len(theirs) == len(e):
+                    txt += f" ({np.mean(theirs):.{digits}f})"
+            row.append(txt)
+            if mpjpe is not None:
+                p = mpjpe.xs((src, m), level=("source", "method")).dropna()
+                row.append(f"{p.mean():.1f}" if len(p) else "")
+            else:
+                row.append("")
+            row.append(f"{rank.xs((src, m), level=('source', 'method')).mean():.1f}")
+            n_cells = len(e)
+            good = sum(m in ties.get((protocol, src, a, n), set()) for a, n in e.index.to_list())
+            row.append(f"{good}/{n_cells}")
+        lines.append("| " + " | ".join(row) + " |")
+    lines += [
+        "",
+        "Means over the (activity, N) cells of the random protocol, the paper's mean over the same cells in "
+        "brackets (rank 1: the lowest mean error of a cell); "
+        "best or tied: the cells where the method has "
+        "the lowest mean or is statistically indistinguishable from it (paired by split, corrected resampled "
+        "t-test, Holm-adjusted, p >= 0.05). Italic: today's baselines. Every cell, with the paper's numbers: "
+        "[docs/results.md](docs/results.md).",
+    ]
+    return "\n".join(lines)
+
+
 def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
     """Markdown table: per protocol and source, in how many (activity, N) cells PM is significantly worse than,
     tied with or better than the cell's best method and 1-NN (:func:`.comparisons.pm_counts`), and its legend."""
@@ -231,13 +309,15 @@ def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
     return "\n".join(lines)
 
 
-def update_readme(path, tables, counts=None):
-    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``, and
+def update_readme(path, tables, counts=None, summary=None):
+    """Replace the text between ``<!-- results-table:<source> -->`` and ``<!-- /results-table:<source> -->``,
     ``counts`` (markdown, :func:`readme_counts`) between ``<!-- results-counts -->`` and
-    ``<!-- /results-counts -->`` if the file has these markers. Returns whether the counts were written.
+    ``<!-- /results-counts -->``, and ``summary`` (:func:`readme_summary`) between ``<!-- results-summary -->`` and
+    ``<!-- /results-summary -->``, where the file has these markers: the README has the summary and the counts,
+    docs/results.md the tables per source. Returns whether the counts were written.
 
-    Raises DataFileError naming ``path`` if it is missing, not UTF-8 text, lacks a source's markers, or cannot be
-    written (the file is then unchanged)."""
+    Raises DataFileError naming ``path`` if it is missing, not UTF-8 text, has neither a source's table markers
+    nor the summary markers, or cannot be written (the file is then unchanged)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -248,15 +328,22 @@ def update_readme(path, tables, counts=None):
             f"cannot read the file to update ({why}); expected an existing UTF-8 text file (the README) with "
             f"the markers '<!-- results-table:<source> -->' ... '<!-- /results-table:<source> -->'",
         ) from exc
+    summary_pat = re.compile(r"(<!-- results-summary -->\n).*?(\n<!-- /results-summary -->)", re.S)
+    has_summary = summary is not None and summary_pat.search(text) is not None
+    if has_summary:
+        text = summary_pat.sub(lambda m: m.group(1) + summary + m.group(2), text)
     for source, table in tables.items():
         pat = re.compile(
             rf"(<!-- results-table:{re.escape(source)} -->\n).*?(\n<!-- /results-table:{re.escape(source)} -->)",
             re.S,
         )
         if not pat.search(text):
+            if has_summary:
+                continue
             raise DataFileError(
                 path,
-                f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->'",
+                f"no markers '<!-- results-table:{source} -->' ... '<!-- /results-table:{source} -->' (nor "
+                f"'<!-- results-summary -->' ... '<!-- /results-summary -->')",
             )
         text = pat.sub(lambda m, table=table: m.group(1) + table + m.group(2), text)
     wrote_counts = False
@@ -379,8 +466,11 @@ def main(argv=None):
             df, read_paper_tables(args.paper), protocol=args.protocol, comparisons=comp
         )
         counts = readme_counts(comp)
+        summary = readme_summary(
+            df, read_paper_tables(args.paper), protocol=args.protocol, comparisons=comp
+        )
         if args.update:
-            if not update_readme(args.update, tables, counts):
+            if not update_readme(args.update, tables, counts, summary):
                 print(
                     f"{args.update}: no markers '<!-- results-counts -->' ... '<!-- /results-counts -->'; the "
                     "count of PM's significant differences was not written",
@@ -389,6 +479,7 @@ def main(argv=None):
         else:
             print("\n\n".join(f"**{s}**\n\n{t}" for s, t in tables.items()))
             print("\n**PM against the best method and 1-NN**\n\n" + counts)
+            print("\n**Summary**\n\n" + summary)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
