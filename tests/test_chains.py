@@ -470,8 +470,8 @@ def test_a_damaged_job_npz_names_the_file_and_what_to_do(tmp_path):
 
 
 def test_pooled_scores_come_from_the_chains_draws_and_training_predictions(chains):
-    """The pooled row's train_error is the error of the chains' mean training prediction, its scores are the
-    sample scores of the chains' kept draws (each chain weighted equally), and its PIT values are theirs."""
+    """The pooled row's train_error is the error of the chains' mean training prediction, its CRPS and PIT
+    values are those of the chains' kept draws (each chain weighted equally)."""
     from bsrbench import scores
     from bsrbench.metrics import mean_angle_error
 
@@ -490,8 +490,9 @@ def test_pooled_scores_come_from_the_chains_draws_and_training_predictions(chain
     y = feats["Y"][test]
     assert row["scores_from"] == "samples"
     assert row["crps"] == pytest.approx(scores.sample_crps(y, draws, w), rel=1e-12)
+    # the NLPD takes the pooled predictive std (the mixture's exact moments), not the kept draws' moments
     assert row["nlpd"] == pytest.approx(
-        scores.sample_nlpd(y, draws, arrays["y_pred"], w), rel=1e-12
+        scores.gaussian_nlpd(y, arrays["y_pred"], arrays["y_std"]), rel=1e-12
     )
     np.testing.assert_allclose(arrays["pit"], scores.sample_pit(y, draws, w), atol=1e-6)
     # bare synthetic arrays name no data source, hence no skeleton and no joint-position error
@@ -504,8 +505,9 @@ def test_a_gaussian_method_pooled_from_one_chain_scores_as_its_fit(tmp_path):
     feats = _features(tmp_path)
     spec = JobSpec("syn", "act", "RVM", 40, 0, min_test=50)
     rvm = "bsrbench.models.rvm:RVM"
-    row, _ = run_job(spec, feats, estimator=rvm, params={}, conformal_level=0.9)
-    chain = run_chain(spec, feats, estimator=rvm, params={}, chain=0, conformal_level=0.9)
+    settings = {"level": 0.9, "params": {}}
+    row, _ = run_job(spec, feats, estimator=rvm, params={}, conformal=settings)
+    chain = run_chain(spec, feats, estimator=rvm, params={}, chain=0, conformal=settings)
     pooled, arrays = pool_chains(spec, feats, [chain], estimator=rvm, params={})
     assert row["scores_from"] == pooled["scores_from"] == "gaussian"
     for key in ("nlpd", "crps", "train_error", "conformal_coverage", "conformal_level"):

@@ -704,3 +704,12 @@ def test_method_settings_accept_the_shipped_configurations_and_report_defaults()
         )
     d = estimator_defaults(f"{REF}:RidgeRegressor")
     assert d == {"alpha": 1.0, "standardize": True, "input_scaling": "pooled"}
+
+
+def test_conformal_settings_per_method():
+    study = _study()
+    pm = study.method("PM")
+    assert study.conformal("PM") == {"level": 0.9, "params": dict(pm.get("cv_params") or {})}
+    assert _study(conformal_level=None).conformal("PM") is None
+    assert _study(**{"methods.PM.conformal": False}).conformal("PM") is None
+    assert _study(conformal_level=0.8).conformal("RVM")["level"] == 0.8

@@ -213,3 +213,19 @@ def test_predictive_draws_of_pm_carry_its_noise():
     assert np.median(s / std) == pytest.approx(1.0, abs=0.05)
     noise_free, _ = est.predict_draws(Xt)
     assert np.median(np.std(noise_free, axis=1) / std) < 0.9
+
+
+def test_split_conformal_refits_with_the_given_params():
+    from bsrbench.models.reference import RidgeRegressor
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(60, 4))
+    Y = X @ rng.normal(size=(4, 3)) * 10 + rng.normal(size=(60, 3))
+    args = (X[:40], Y[:40], X[40:], Y[40:])
+    heavy = S.split_conformal(RidgeRegressor(alpha=1e6), *args, seed=1)
+    swapped = S.split_conformal(RidgeRegressor(alpha=1e-3), *args, seed=1, params={"alpha": 1e6})
+    light = S.split_conformal(RidgeRegressor(alpha=1e-3), *args, seed=1)
+    np.testing.assert_array_equal(swapped["conformal_radius"], heavy["conformal_radius"])
+    assert (
+        light["conformal_radius"] < heavy["conformal_radius"]
+    ).all()  # a better fit, narrower interval

@@ -906,6 +906,16 @@ class Study:
         """{method: label} for every method run, in table order."""
         return {m: self.method(m).get("label", m) for m in self.run}
 
+    def conformal(self, name):
+        """The split-conformal settings of a method's fits, ``{"level", "params"}``, or None (``conformal_level``
+        null, or the method's ``conformal: false``). ``params``: the method's ``cv_params``, which the refit
+        on 75% of the training frames uses too (e.g. fewer MCMC sweeps): the interval's guarantee holds for any
+        point predictor."""
+        level = self.config.get("conformal_level")
+        if level is None or not self.method(name).get("conformal", True):
+            return None
+        return {"level": float(level), "params": dict(self.method(name).get("cv_params") or {})}
+
     def method_groups(self):
         """{method: its table block, "paper" or "today"} for every method run (methods.<M>.group)."""
         return {m: self.method(m).get("group") or "paper" for m in self.run}

@@ -76,13 +76,17 @@ def angle_draws(transform, draws):
     return transform.inverse(draws.reshape(n * S, d)).reshape(n, S, -1)
 
 
-def _scored_draws(spec, split, est, X_test):
-    """PM's posterior predictive draws of the test angles and their weights, or ``(None, None)``."""
+def _scored_draws(spec, split, est, X_test, draws=None):
+    """PM's posterior predictive draws of the test angles and their weights, or ``(None, None)``; ``draws``:
+    ``est.predict_draws(X_test)`` if already computed."""
     if not hasattr(est, "predict_draws"):
         return None, None
     from .scores import predictive_draws
 
-    draws, weights = predictive_draws(est, X_test, seed=spec.method_seed)
+    draws, weights = predictive_draws(est, X_test, seed=spec.method_seed, draws=draws)
+    if draws.shape[1] < 2:
+        # one retained sample: its predictive distribution is the Gaussian of predict(X, return_std=True)
+        return None, None
     return angle_draws(split.transform, draws), weights
 
 
@@ -91,15 +95,18 @@ def _train_error(split, z_train):
     return mean_angle_error(split.Y[split.train], split.transform.inverse(z_train))
 
 
-def _conformal(spec, split, est, level):
-    """Split-conformal radius and test coverage at ``level`` for a method with a predictive std; else None."""
-    if level is None or not supports_std(est):
+def split_conformal_interval(spec, split, est, settings):
+    """Split-conformal radius and test coverage for a method with a predictive std, else None. ``settings``:
+    ``{"level", "params"}`` (None: none): the level, and the parameters that replace ``est``'s in the refit on
+    part of the training frames (e.g. fewer MCMC sweeps; the coverage guarantee holds for any point predictor)."""
+    if settings is None or not supports_std(est):
         return None
+    level = float(settings["level"])
     from .scores import split_conformal
 
     # A quarter of the training frames calibrate, but at least the ceil(level / (1 - level)) frames (9 at 0.9)
     # below which the conformal radius is infinite.
-    n_min = math.ceil(float(level) / (1.0 - float(level)) - 1e-9)
+    n_min = math.ceil(level / (1.0 - level) - 1e-9)
     fraction = max(0.25, n_min / split.train.size)
     out = split_conformal(
         est,
@@ -108,11 +115,12 @@ def _conformal(spec, split, est, level):
         split.X[split.test],
         split.Y[split.test],
         transform=split.transform,
-        level=float(level),
+        level=level,
         fraction=fraction,
         seed=spec.method_seed,
+        params=settings.get("params") or {},
     )
-    return {**out, "level": float(level)}
+    return {**out, "level": level}
 
 
 def inverse_std(transform, Z_mean, Z_std):
@@ -213,15 +221,13 @@ def trace_arrays(est):
     return out
 
 
-def run_job(
-    spec, features, *, estimator, params, cv_mode="none", cv_seconds=None, conformal_level=None
-):
+def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=None, conformal=None):
     """Fit ``estimator`` (dotted path) with ``params`` on the training frames of ``spec``'s split.
 
     Returns ``(row, arrays)``: the tidy result row (JSON-ready dict) and the arrays to save
     (test indices, true and predicted angles, predictive std if any, PIT values if scored, and the sampler
-    trace if any). ``conformal_level``: level of the split-conformal reference interval of a method with a
-    predictive std (None: none).
+    trace if any). ``conformal``: ``{"level", "params"}`` of the split-conformal reference interval of a
+    method with a predictive std (:func:`split_conformal_interval`; None: none).
     """
     split = prepare_split(spec, features)
     est, fit_seconds = split.fit(estimator, params, spec.method_seed)
@@ -247,7 +253,7 @@ def run_job(
         samples=samples,
         weights=weights,
         train_error=_train_error(split, est.predict(split.X[split.train])),
-        conformal=_conformal(spec, split, est, conformal_level),
+        conformal=split_conformal_interval(spec, split, est, conformal),
     )
     arrays.update(trace_arrays(est))
     return row, arrays
@@ -322,7 +328,7 @@ def _score(
             extra_scores(
                 Y_true,
                 Y_pred,
-                source=f"{spec.source}/{spec.activity}",
+                source=spec.method,
                 skeleton=split.skeleton,
                 std=Y_std,
                 samples=samples,
@@ -363,7 +369,7 @@ def chain_seed(method_seed, chain):
     return (int(method_seed) + int(chain)) % 2**32
 
 
-def run_chain(spec, features, *, estimator, params, chain, conformal_level=None):
+def run_chain(spec, features, *, estimator, params, chain, conformal=None):
     """One MCMC chain of ``spec``'s split: fit with :func:`chain_seed`, predict the test frames.
 
     Returns a dict of arrays (the chain file): ``train``, ``test``, ``z_mean`` and ``z_var`` (predictive mean
@@ -374,7 +380,7 @@ def run_chain(spec, features, *, estimator, params, chain, conformal_level=None)
     ``score_draws`` / ``score_weights`` (:data:`SCORE_DRAWS_PER_CHAIN` posterior predictive draws of the test
     angles, noise included, and their weights renormalised). Chain 0 of a method with a predictive std also
     holds the split-conformal ``conformal_radius``, ``conformal_coverage`` and ``conformal_level`` when
-    ``conformal_level`` is set. Then ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
+    ``conformal`` is set. Then ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
     ``predict_seconds``.
     """
     split = prepare_split(spec, features)
@@ -390,7 +396,8 @@ def run_chain(spec, features, *, estimator, params, chain, conformal_level=None)
         z_mean = est.predict(X_test)
     out["z_mean"] = np.asarray(z_mean, dtype=float)
     if hasattr(est, "predict_draws"):
-        draws = np.asarray(est.predict_draws(X_test)[0], dtype=float)
+        noise_free = est.predict_draws(X_test)
+        draws = np.asarray(noise_free[0], dtype=float)
         if draws.ndim != 3 or draws.shape[0] != test.size:
             raise InputError(
                 f"{spec.method}: predict_draws returned draws of shape {draws.shape}; expected "
@@ -402,16 +409,17 @@ def run_chain(spec, features, *, estimator, params, chain, conformal_level=None)
                 for i in range(draws.shape[1])
             ]
         )
-        samples, weights = _scored_draws(spec, split, est, X_test)
-        keep = np.unique(
-            np.linspace(0, samples.shape[1] - 1, SCORE_DRAWS_PER_CHAIN).round().astype(int)
-        )
-        w = np.asarray(weights, dtype=float)[:, keep]
-        out["score_draws"] = samples[:, keep, :].astype(np.float32)
-        out["score_weights"] = w / w.sum(axis=1, keepdims=True)
+        samples, weights = _scored_draws(spec, split, est, X_test, draws=noise_free)
+        if samples is not None:
+            keep = np.unique(
+                np.linspace(0, samples.shape[1] - 1, SCORE_DRAWS_PER_CHAIN).round().astype(int)
+            )
+            w = np.asarray(weights, dtype=float)[:, keep]
+            out["score_draws"] = samples[:, keep, :].astype(np.float32)
+            out["score_weights"] = w / w.sum(axis=1, keepdims=True)
     predict_seconds = time.perf_counter() - t0
     out["z_train"] = np.asarray(est.predict(split.X[split.train]), dtype=float)
-    conformal = _conformal(spec, split, est, conformal_level) if int(chain) == 0 else None
+    conformal = split_conformal_interval(spec, split, est, conformal) if int(chain) == 0 else None
     if conformal is not None:
         out["conformal_radius"] = np.asarray(conformal["conformal_radius"], dtype=float)
         out["conformal_coverage"] = np.float64(conformal["conformal_coverage"])

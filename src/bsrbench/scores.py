@@ -125,7 +125,7 @@ def moment_match(samples, centre, weights=None):
     return m, np.sqrt(np.sum(w * (d - m[:, None, :]) ** 2, axis=1))
 
 
-def predictive_draws(estimator, X, seed=0):
+def predictive_draws(estimator, X, seed=0, draws=None):
     """Posterior predictive draws ``(draws (n, S, outputs), weights (n, S))`` of an estimator with
     ``predict_draws(X)`` (e.g. :class:`bsrbench.models.bsr.BayesianSR`), in the units of its fitted Y: each
     retained sample's noise-free prediction plus one Gaussian noise draw of that sample's noise variance.
@@ -133,9 +133,10 @@ def predictive_draws(estimator, X, seed=0):
     For BayesianSR the noise variance of sample t is ``1 / g_ny[t]`` on the standardized outputs (``g_ny``: the
     output rows' noise precision, equal to g_xy unless ``noise="separate"``), times ``y_scale_**2`` per output:
     the same noise that its ``predict(X, return_std=True)`` adds to the spread of the samples. ``seed`` seeds the
-    noise (``numpy.random.default_rng``).
+    noise (``numpy.random.default_rng``). ``draws``: the ``(draws, weights)`` of ``estimator.predict_draws(X)``
+    if already computed.
     """
-    draws, weights = estimator.predict_draws(X)
+    draws, weights = estimator.predict_draws(X) if draws is None else draws
     draws = np.asarray(draws, dtype=float)
     g = np.asarray(estimator.samples_["g_ny"], dtype=float).ravel()
     # The prediction uses the last draws.shape[1] retained samples (BayesianSR's n_predict_samples).
@@ -271,12 +272,22 @@ def interval_coverage_radius(y_true, y_pred, radius):
 
 
 def split_conformal(
-    estimator, X, Y, X_test, Y_test, *, transform=None, level=0.9, fraction=0.25, seed=0
+    estimator,
+    X,
+    Y,
+    X_test,
+    Y_test,
+    *,
+    transform=None,
+    level=0.9,
+    fraction=0.25,
+    seed=0,
+    params=None,
 ):
     """Split-conformal ``level`` intervals of a method on one split: returns ``{"conformal_radius" (d,),
     "conformal_coverage"}``.
 
-    A clone of ``estimator`` is fitted on the training rows ``X, Y`` less a random ``fraction`` held out
+    A clone of ``estimator`` (with ``params`` set, if given) is fitted on the training rows ``X, Y`` less a random ``fraction`` held out
     (:func:`calibration_split`, ``seed``), the radius per angle comes from its errors on the held-out rows
     (:func:`conformal_radius`), and the coverage is that of its test predictions ``+- radius`` on ``Y_test``.
     ``Y`` and ``Y_test`` are angles (degrees); ``transform`` (``forward``/``inverse``, e.g.
@@ -288,7 +299,7 @@ def split_conformal(
     fwd = transform.forward if transform is not None else (lambda a: a)
     inv = transform.inverse if transform is not None else (lambda a: np.asarray(a, dtype=float))
     fit, cal = calibration_split(X.shape[0], fraction, seed)
-    est = clone(estimator).fit(X[fit], fwd(Y[fit]))
+    est = clone(estimator).set_params(**(params or {})).fit(X[fit], fwd(Y[fit]))
     radius = conformal_radius(Y[cal], inv(est.predict(X[cal])), level)
     cover = interval_coverage_radius(
         Y_test, inv(est.predict(np.asarray(X_test, dtype=float))), radius

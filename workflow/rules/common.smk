@@ -72,6 +72,11 @@ def estimator_sources(wildcards):
     return STUDY.estimator_sources(wildcards.method)
 
 
+def conformal(wildcards):
+    """The method's split-conformal settings ({"level", "params"}), or None."""
+    return STUDY.conformal(wildcards.method)
+
+
 def method_grid(wildcards):
     return STUDY.grid(wildcards.method)
 

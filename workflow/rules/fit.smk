@@ -22,7 +22,7 @@ FIT_PARAMS = dict(
     cv_mode=config["cv"]["mode"],
     paper_activity=lambda w: dataset(w.source, w.activity)["paper_activity"] or "",
     pose_transform=config["pose_transform"],
-    conformal_level=config["conformal_level"],
+    conformal=conformal,
     min_test=config["min_test"],
     gap=config["gap"],
 )
@@ -30,7 +30,7 @@ CHAIN_PARAMS = dict(
     estimator=lambda w: method_setting(w.method)["estimator"],
     fixed=lambda w: method_setting(w.method).get("params", {}),
     pose_transform=config["pose_transform"],
-    conformal_level=config["conformal_level"],
+    conformal=conformal,
     min_test=config["min_test"],
     gap=config["gap"],
 )
