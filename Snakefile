@@ -80,6 +80,8 @@ localrules:
     plot_subjective,
     report_why_pm,
     report_mechanisms,
+    report_today,
+    plot_pit,
     pool_chains,
     report_pdf,
     download_cmu_asf,

@@ -95,6 +95,12 @@ def test_scalars_keep_snakemakes_reading_and_bad_yaml_names_the_key():
     config = dict(parsed)
     retype_cli_config(config, ["n_seeds=4", "job_server=False", "study=1e3"], parsed)
     assert config == {"n_seeds": 4, "job_server": False, "study": 1000.0}
+    # null and ~ are YAML's null, as in a file
+    args = ["conformal_level=null", "gap=~"]
+    parsed = parse_config(args)
+    config = dict(parsed)
+    retype_cli_config(config, args, parsed)
+    assert config == {"conformal_level": None, "gap": None} and parsed["conformal_level"] == "null"
     arg = "n_train=[30, 60"
     with pytest.raises(InputError, match=r"--config n_train: '\[30, 60' is not valid YAML"):
         retype_cli_config({}, [arg], {"n_train": ["fake"]})
@@ -300,6 +306,11 @@ def test_skipped_cells_against_the_split_limits():
             r"config key 'methods.Ridge.params' \(method Ridge, bsrbench.models.reference:RidgeRegressor\)",
         ),
         ({"n_seeds": 0}, r"configuration: key 'n_seeds', value 0: "),
+        (
+            {"conformal_level": 0.97},
+            r"config key 'conformal_level': 0.97 needs at least 34 training frames .* but n_train has 30; "
+            r"lower conformal_level \(at most 0.9667\) or set it to null",
+        ),
         ({"nosuchkey": 1}, r"configuration: unknown key 'nosuchkey' \(value 1\)"),
     ],
 )

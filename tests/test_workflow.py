@@ -379,8 +379,13 @@ def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
     import pandas as pd
 
     df = pd.read_csv(ci_run / "results" / "ci" / "aggregate" / "results.csv")
-    assert len(df) == 7 * 2  # 7 methods x 1 activity x 1 size x 2 seeds
-    assert set(df["method"]) == {"RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge"}
+    assert len(df) == 9 * 2  # 9 methods x 1 activity x 1 size x 2 seeds
+    assert set(df["method"]) == {"RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge", "KNN", "GP"}
+    # the new columns: joint-position errors for all, proper scores only with a predictive distribution
+    assert (df["pa_mpjpe_mm"] <= df["mpjpe_mm"]).all() and df["mpjpe_mm"].between(1, 500).all()
+    scored = df.set_index("method")["scores_from"].dropna().groupby(level=0).first().to_dict()
+    assert scored == {"RVM": "gaussian", "GP": "gaussian", "PM": "samples"}
+    assert df.loc[df["scores_from"].isna(), ["nlpd", "crps"]].isna().all().all()
     assert df["error"].between(0, 180).all()
     assert df.loc[df["method"] == "PM", "coverage_90"].between(0, 1).all()
     assert (
@@ -402,6 +407,9 @@ def test_ci_tables_have_the_paper_rows(ci_run):
     for table, names in list(PAPER_TABLE_ROWS.items())[:1]:
         text = (ci_run / "reports" / "ci" / "tables" / f"table{table}_hsc.tex").read_text()
         assert r"\toprule" in text and r"\bottomrule" in text
+        # the paper's methods' block; the second one has today's baselines beside PM
+        text, today = text.split(r"\end{table}")[:2]
+        assert "(today's baselines)" in today and "k-NN" in today
         rows = [
             ln.split(" & ")[0]
             for ln in text.splitlines()
@@ -411,7 +419,9 @@ def test_ci_tables_have_the_paper_rows(ci_run):
         assert list(dict.fromkeys(rows[1:])) == names
     table_i = (ci_run / "reports/ci/tables/tableI_hsc.tex").read_text()
     golf = [ln for ln in table_i.splitlines() if ln.startswith("Golf & 30")]
-    assert len(golf) == 1 and golf[0].count(r"\textbf") >= 1 and golf[0].count(r"$\pm$") == 7
+    # a row per block: the paper's 7 methods, then PM, k-NN and the GP; one bold mean over both
+    assert [ln.count(r"$\pm$") for ln in golf] == [7, 3]
+    assert sum(ln.count(r"\textbf") for ln in golf) >= 1
 
 
 def test_ci_pdf_and_html_report(ci_run):
@@ -476,6 +486,8 @@ def test_another_study_touches_nothing_of_this_one(ci_run, args):
 CLUSTER_RULES = {"fit", "fit_chain", "cv", "features_codebook", "features_mocap"}
 LOCAL_RULES = {
     "all",
+    "report_today",
+    "plot_pit",
     "aggregate",
     "comparisons",
     "plot_cd",
@@ -540,6 +552,8 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
         "plot_trace",
         "report_why_pm",
         "report_mechanisms",
+        "report_today",
+        "plot_pit",
         "plot_subjective",
         "report_pdf",
         "features_mat",
@@ -570,6 +584,12 @@ def test_slurm_profile_submits_fit_and_cv_jobs(ci_run):
     )
     out = res.stdout + res.stderr
     assert res.returncode != 0
+    assert not any((ci_run / t).exists() for t in targets)
+    if shutil.which("scontrol") is None:
+        # without the SLURM client commands the cluster check at the start refuses, before any submission
+        assert "`scontrol` is not installed on this host" in out, out[-3000:]
+        assert not re.search(r"^(local)?rule (fit|cv):", out, re.M)
+        return
     assert set(re.findall(r"^rule (\w+):", out, re.M)) == {"fit", "cv"}, out[-3000:]
     assert not re.search(r"^localrule (fit|cv):", out, re.M)
     assert "Job submission failed" in out, out[-3000:]
@@ -637,12 +657,12 @@ def test_the_html_report_refuses_an_aggregate_of_another_configuration(ci_run):
     [
         (
             "n_seeds=3",
-            r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 7 job\(s\) to add, 0 no longer",
+            r"seed: the table has \[0, 1\], the configuration \[0, 1, 2\]; 9 job\(s\) to add, 0 no longer",
         ),
         (
             "run=[RVM,PM]",
-            r"method: the table has \['DDL', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the configuration "
-            r"\['PM', 'RVM'\]; 0 job\(s\) to add, 10 no longer configured",
+            r"method: the table has \['DDL', 'GP', 'KNN', 'NN1', 'PM', 'RVM', 'Ridge', 'SR', 'TGP'\], the "
+            r"configuration \['PM', 'RVM'\]; 0 job\(s\) to add, 14 no longer configured",
         ),
     ],
 )

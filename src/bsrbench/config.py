@@ -61,7 +61,8 @@ def retype_cli_config(config, config_args, parsed):
     safe loader (in place; returns ``config``).
 
     ``config_args``: the raw ``key=value`` strings (``workflow.config_settings.config_args``); ``parsed``:
-    Snakemake's reading of them (``workflow.config_settings.config``). Scalars keep Snakemake's reading.
+    Snakemake's reading of them (``workflow.config_settings.config``). Scalars keep Snakemake's reading, but for
+    ``null`` and ``~``, which become None.
     Raises InputError naming the key when a value is not valid YAML.
     """
     from snakemake.utils import update_config
@@ -70,6 +71,13 @@ def retype_cli_config(config, config_args, parsed):
         return config
     for arg in config_args:
         key, sep, text = str(arg).partition("=")
+        if (
+            sep
+            and text.strip() in ("null", "~", "Null", "NULL")
+            and parsed.get(key) == text.strip()
+        ):
+            config[key] = None  # YAML's null, as in a file (Snakemake keeps the string)
+            continue
         if not sep or not isinstance(parsed.get(key), (list, dict)):
             continue
         try:
@@ -536,6 +544,18 @@ def _check_study(config, datasets, cwd):
     """The cross-checks of the study keys; returns the skipped cells. Raises ValueError naming the key."""
     methods = config["methods"]
     check_method_settings(methods, config["run"], n_train=config["n_train"], cv=config["cv"])
+    level = config.get("conformal_level")
+    if level is not None:
+        # the split-conformal radius at this level needs ceil(level / (1 - level)) calibration frames and one
+        # frame to fit
+        need = math.ceil(level / (1.0 - level) - 1e-9) + 1
+        if min(config["n_train"]) < need:
+            raise ValueError(
+                f"config key 'conformal_level': {level!r} needs at least {need} training frames (a finite "
+                f"split-conformal radius needs ceil(level / (1 - level)) = {need - 1} calibration frames), but "
+                f"n_train has {min(config['n_train'])}; lower conformal_level (at most "
+                f"{(min(config['n_train']) - 1) / min(config['n_train']):.4g}) or set it to null"
+            )
     report = config["report"]
     m = report.get("trace_method")
     if m is not None and m not in methods:

@@ -58,7 +58,7 @@ def fit(job):
         params=params,
         cv_mode=p.cv_mode,
         cv_seconds=cv_seconds,
-        conformal=p.conformal,
+        conformal=getattr(p, "conformal", None),
     )
     write_arrays(out["predictions"], arrays)
     write_json(out["row"], row)
@@ -103,7 +103,7 @@ def fit_chain(job):
         estimator=p.estimator,
         params=params,
         chain=int(w.chain),
-        conformal=p.conformal,
+        conformal=getattr(p, "conformal", None),
     )
     write_arrays(job["output"]["chain"], arrays)
     print(

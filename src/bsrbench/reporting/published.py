@@ -239,9 +239,15 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
     keys = keys.set_index(["source", "activity", "n_train"])["key"]
     rank = err.groupby(level=["source", "activity", "n_train"]).rank(method="average")
     mpjpe = cells["mpjpe_mm"].mean() if "mpjpe_mm" in d.columns else None
+    # an MPJPE column per source with recorded MPJPE (tables from before it have none)
+    has_mpjpe = {
+        src: mpjpe is not None and bool(mpjpe.xs(src, level="source").notna().any())
+        for src in sources
+    }
     head = ["method"]
     for src in sources:
-        head += [f"{src} error (°)", f"{src} MPJPE (mm)", f"{src} rank", f"{src} best or tied"]
+        head += [f"{src} error (°)"] + ([f"{src} MPJPE (mm)"] if has_mpjpe[src] else [])
+        head += [f"{src} rank", f"{src} best or tied"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for m in order:
         name = labels.get(m, m)
@@ -261,11 +267,9 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
                 if theirs and len(theirs) == len(e):
                     txt += f" ({np.mean(theirs):.{digits}f})"
             row.append(txt)
-            if mpjpe is not None:
+            if has_mpjpe[src]:
                 p = mpjpe.xs((src, m), level=("source", "method")).dropna()
                 row.append(f"{p.mean():.1f}" if len(p) else "")
-            else:
-                row.append("")
             row.append(f"{rank.xs((src, m), level=('source', 'method')).mean():.1f}")
             n_cells = len(e)
             good = sum(m in ties.get((protocol, src, a, n), set()) for a, n in e.index.to_list())
