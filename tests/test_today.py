@@ -68,7 +68,11 @@ def test_scores_summary_skips_methods_without_a_predictive_distribution():
     gp = s.set_index("method").loc["GP"]
     assert gp["nlpd"] == pytest.approx(2.5) and gp["crps"] == pytest.approx(3.5) and gp["n"] == 2
     text = today.scores_latex(s, labels={"GP": "GP (ARD)"})
-    assert "random & hsc & GP (ARD) & 3.50 & 2.50 & 3.50 & 0.80 & 0.90" in text
+    assert "random & hsc & GP (ARD) & 3.50 & 2.50 & 2.50 & 3.50 & 0.80 & 0.90" in text
+    assert (
+        gp["nlpd_median"] == pytest.approx(2.5)
+        and today._number(696966.9) == r"$6.97\times 10^{5}$"
+    )
 
 
 def test_standing_counts_cells_by_the_sign_and_the_holm_p():

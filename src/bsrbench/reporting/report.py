@@ -508,7 +508,8 @@ def write_generated(path, df, paper, *, labels, defaults=None, study=None, compa
     items = findings(df, paper, labels=labels, comparisons=comparisons) or [
         "No sentence applies to what was run (the findings compare PM with the paper's baselines and references)."
     ]
-    body += [r"\section{Findings}", r"\begin{itemize}"]
+    # ragged right: the activity names are unbreakable boxes, and a justified line of them can overflow
+    body += [r"\section{Findings}", r"\begin{itemize}\raggedright"]
     body += [r"\item " + f for f in items]
     body += [r"\end{itemize}", ""]
     counts = counts_latex(comparisons, labels=labels)
