@@ -546,9 +546,10 @@ def _check_study(config, datasets, cwd):
     check_method_settings(methods, config["run"], n_train=config["n_train"], cv=config["cv"])
     level = config.get("conformal_level")
     if level is not None:
-        # the split-conformal radius at this level needs ceil(level / (1 - level)) calibration frames and one
-        # frame to fit
-        need = math.ceil(level / (1.0 - level) - 1e-9) + 1
+        from .scores import min_calibration_frames
+
+        # a finite split-conformal radius at this level needs this many calibration frames, and one to fit
+        need = min_calibration_frames(level) + 1
         if min(config["n_train"]) < need:
             raise ValueError(
                 f"config key 'conformal_level': {level!r} needs at least {need} training frames (a finite "

@@ -71,9 +71,10 @@ def extra_scores(
     """Joint-position errors and proper scores of one test set, for its result row.
 
     ``y_true_angles``, ``y_pred_angles`` (n, 57): true and predicted pose angles (degrees, the original pose
-    space); ``source``: the data source (``"hsc"`` or ``"mocap"``, named in errors); ``skeleton``: its
+    space); ``source``: what is scored (e.g. the data source or the method), named in errors; ``skeleton``: its
     :class:`bsrbench.kinematics.PoseSkeleton` (:func:`bsrbench.kinematics.hsc_pose_skeleton`, or
-    :func:`bsrbench.kinematics.mocap_pose_skeleton` of the activity's first trial file); ``std`` (n, 57): the
+    :func:`bsrbench.kinematics.mocap_pose_skeleton` of the activity's first trial file), or None for angles of
+    no known skeleton (then MPJPE and PA-MPJPE are None); ``std`` (n, 57): the
     predictive std in the same space, if the method gives one; ``samples`` (n, S, 57): posterior predictive draws
     of an observed angle in the same space, noise included (:func:`bsrbench.scores.predictive_draws`), if it
     gives them, with their ``weights`` (n, S) (None: equal); draws take precedence over ``std`` (see
@@ -85,6 +86,14 @@ def extra_scores(
     """
     from . import kinematics, scores
 
+    if skeleton is None:
+        out = {"mpjpe_mm": None, "pa_mpjpe_mm": None}
+        out.update(
+            scores.proper_scores(
+                y_true_angles, y_pred_angles, std=std, samples=samples, weights=weights, what=source
+            )
+        )
+        return out
     what = f"{source} ({skeleton.source})"
     for name, a in (("y_true", y_true_angles), ("y_pred", y_pred_angles)):
         scores.check_finite(np.asarray(a, dtype=float), name, what)

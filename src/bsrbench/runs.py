@@ -5,7 +5,6 @@ Section "Experimental Results"): error = mean over the 57 angles of the per-angl
 over 10 random splits. Nothing here reads Snakemake objects or the configuration: the jobs pass plain values.
 """
 
-import math
 import platform
 import time
 from dataclasses import dataclass
@@ -104,10 +103,6 @@ def split_conformal_interval(spec, split, est, settings):
     level = float(settings["level"])
     from .scores import split_conformal
 
-    # A quarter of the training frames calibrate, but at least the ceil(level / (1 - level)) frames (9 at 0.9)
-    # below which the conformal radius is infinite.
-    n_min = math.ceil(level / (1.0 - level) - 1e-9)
-    fraction = max(0.25, n_min / split.train.size)
     out = split_conformal(
         est,
         split.X[split.train],
@@ -116,7 +111,6 @@ def split_conformal_interval(spec, split, est, settings):
         split.Y[split.test],
         transform=split.transform,
         level=level,
-        fraction=fraction,
         seed=spec.method_seed,
         params=settings.get("params") or {},
     )
@@ -323,23 +317,17 @@ def _score(
     else:
         Y_std = None
         row["coverage"] = None
-    if split.skeleton is not None:
-        row.update(
-            extra_scores(
-                Y_true,
-                Y_pred,
-                source=spec.method,
-                skeleton=split.skeleton,
-                std=Y_std,
-                samples=samples,
-                weights=weights,
-            )
+    row.update(
+        extra_scores(
+            Y_true,
+            Y_pred,
+            source=spec.method,
+            skeleton=split.skeleton,
+            std=Y_std,
+            samples=samples,
+            weights=weights,
         )
-    else:
-        from .scores import proper_scores
-
-        row.update(mpjpe_mm=None, pa_mpjpe_mm=None)
-        row.update(proper_scores(Y_true, Y_pred, std=Y_std, samples=samples, weights=weights))
+    )
     if row["scores_from"] is not None:
         from .scores import gaussian_pit, sample_pit
 

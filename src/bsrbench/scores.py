@@ -15,8 +15,8 @@ estimator ("pwm"), equal to the "fair" one and unbiased for the CRPS of the dist
 for weighted draws the CRPS of their weighted empirical distribution ("int"). The NLPD of draws is that of the
 Gaussian with their mean and variance: PM's ``predict(X, return_std=True)`` std when given (the exact moments of
 the mixture the draws sample), else a moment match of the draws (a kernel density estimate per angle would add a
-bandwidth to choose). A sample CRPS and a closed-form CRPS estimate the same quantity but are not strictly comparable at small
-sample sizes (Zamo and Naveau, Math. Geosci. 2018).
+bandwidth to choose). A sample CRPS and a closed-form CRPS estimate the same quantity but are not strictly
+comparable at small sample sizes (Zamo and Naveau, Math. Geosci. 2018).
 
 Angles wrap: the error of a prediction is the wrapped difference ``((y - mu + 180) mod 360) - 180``, and every
 draw is first moved by a multiple of 360 degrees to within 180 degrees of the predicted mean.
@@ -216,6 +216,12 @@ def sample_pit(y_true, samples, weights=None, what="pit"):
 
 
 # ------------------------------------------------------------------------------------------- split conformal
+def min_calibration_frames(level):
+    """The fewest calibration frames with a finite split-conformal radius at ``level``: the smallest m with
+    ``ceil((m + 1) level) <= m``, i.e. ``ceil(level / (1 - level))`` (9 at 0.9)."""
+    return math.ceil(level / (1.0 - level) - 1e-9)
+
+
 def calibration_split(n, fraction=0.25, seed=0, min_calibration=5):
     """Indices ``(fit, calibration)`` into ``range(n)`` training rows: a random ``fraction`` held out for
     calibration (at least ``min_calibration`` rows, and at least 1 row left to fit)."""
@@ -287,8 +293,9 @@ def split_conformal(
     """Split-conformal ``level`` intervals of a method on one split: returns ``{"conformal_radius" (d,),
     "conformal_coverage"}``.
 
-    A clone of ``estimator`` (with ``params`` set, if given) is fitted on the training rows ``X, Y`` less a random ``fraction`` held out
-    (:func:`calibration_split`, ``seed``), the radius per angle comes from its errors on the held-out rows
+    A clone of ``estimator`` (with ``params`` set, if given) is fitted on the training rows ``X, Y`` less a
+    random ``fraction`` held out, and at least :func:`min_calibration_frames` of them, below which the radius
+    is infinite (:func:`calibration_split`, ``seed``), the radius per angle comes from its errors on the held-out rows
     (:func:`conformal_radius`), and the coverage is that of its test predictions ``+- radius`` on ``Y_test``.
     ``Y`` and ``Y_test`` are angles (degrees); ``transform`` (``forward``/``inverse``, e.g.
     :class:`bsrbench.poses.HeadingTransform`) maps them to the space the estimator is fitted in and back.
@@ -298,7 +305,9 @@ def split_conformal(
     X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
     fwd = transform.forward if transform is not None else (lambda a: a)
     inv = transform.inverse if transform is not None else (lambda a: np.asarray(a, dtype=float))
-    fit, cal = calibration_split(X.shape[0], fraction, seed)
+    fit, cal = calibration_split(
+        X.shape[0], fraction, seed, min_calibration=max(5, min_calibration_frames(level))
+    )
     est = clone(estimator).set_params(**(params or {})).fit(X[fit], fwd(Y[fit]))
     radius = conformal_radius(Y[cal], inv(est.predict(X[cal])), level)
     cover = interval_coverage_radius(

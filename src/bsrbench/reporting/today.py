@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from .comparisons import verdict
 from .tables import activity_label, best_mask, latex_escape
 
 #: Columns of the uncertainty table, with their headers.
@@ -156,16 +157,16 @@ def standing(comp, *, today, pm="PM", alpha=0.05):
     c = comp[(comp["versus"] == pm) & comp["method"].isin(today) & comp["p_holm"].notna()]
     rows = []
     for (protocol, source, method), g in c.groupby(["protocol", "source", "method"], sort=True):
-        sig = g["p_holm"] < alpha
+        # the baseline's verdict against PM: its "better" is PM's "worse"
+        v = [verdict(p, d, alpha=alpha) for p, d in zip(g["p_holm"], g["mean_diff"])]
         rows.append(
             {
                 "protocol": protocol,
                 "source": source,
                 "method": method,
-                # mean_diff = error(method) - error(PM): negative means the baseline is better, PM worse
-                "worse": int((sig & (g["mean_diff"] < 0)).sum()),
-                "tied": int((~sig).sum()),
-                "better": int((sig & (g["mean_diff"] > 0)).sum()),
+                "worse": v.count("better"),
+                "tied": v.count("tied"),
+                "better": v.count("worse"),
             }
         )
     return pd.DataFrame(rows, columns=cols)
