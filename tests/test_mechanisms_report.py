@@ -263,6 +263,9 @@ def test_readme_paragraph_between_markers(tmp_path):
     )
     assert "+0.70 deg (95% CI +0.70 to +0.70) at N = 30" in text
     assert "significantly worse in 4, equal in 0 and better in 0 of 4 cells" in text
+    # the training-vs-test table: PM's row at N = 30 (its training error is the test error - 3 here)
+    pm30 = df[(df["method"] == "PM") & (df["n_train"] == 30)]["error"].mean()
+    assert f"| 30 | {pm30 - 3:.2f} / {pm30:.2f} | " in text
     # a file without the markers, and a table without variants: clear errors, the file unchanged
     other = tmp_path / "OTHER.md"
     other.write_text("no markers\n")

@@ -642,8 +642,8 @@ def _plain(text):
 
 
 def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, variants=None):
-    """The README's paragraph (markdown) on the paper's reasons, from a published table: per variant its
-    difference to ``base`` per N with the interval, and the cell counts. ``variants`` None: found from the table's
+    """The README's paragraph (markdown) on the paper's reasons, from a published table: a bullet per variant with
+    its difference to ``base`` per N, the interval and the cell counts; then the training and test errors. ``variants`` None: found from the table's
     ``params`` (:func:`variants_from_results`). InputError if there is no mechanism variant."""
     labels = labels or {}
     if variants is None:
@@ -673,21 +673,28 @@ def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, varia
         )
     ft = fit_table(results, base=base, variants=variants)
     if ft is None:
-        sentences.append(f"Training error: {NOT_RECORDED}.")
+        fit = f"Training error: {NOT_RECORDED}."
     else:
-        parts = []
+        methods = list(dict.fromkeys(ft["method"]))
+        fit = (
+            "Training vs test error (deg, means over the activities and splits):\n\n| N | "
+            + " | ".join(f"{lab(m)} train / test" for m in methods)
+            + " |\n|---:|"
+            + "---:|" * len(methods)
+        )
         for n, g in ft.groupby("n_train", sort=True):
-            parts.append(
-                f"N = {int(n)}: "
-                + ", ".join(
-                    f"{lab(r.method)} {r.train_error:.2f} vs {r.test_error:.2f}"
-                    for r in g.itertuples(index=False)
+            by = {r.method: r for r in g.itertuples(index=False)}
+            fit += (
+                f"\n| {int(n)} | "
+                + " | ".join(
+                    f"{by[m].train_error:.2f} / {by[m].test_error:.2f}" if m in by else ""
+                    for m in methods
                 )
+                + " |"
             )
-        sentences.append("Training vs test error (deg): " + "; ".join(parts) + ".")
     legend = (
         "Differences are variant minus PM on the same splits (positive: the variant is worse), averaged over the "
         "activities at each N; intervals and significance from the corrected resampled t-test (Nadeau and Bengio "
         "2003), Holm-adjusted over each cell's comparisons, p < 0.05."
     )
-    return " ".join(sentences) + "\n\n" + legend
+    return "\n".join(f"- {s}" for s in sentences) + "\n\n" + fit + "\n\n" + legend

@@ -300,7 +300,7 @@ def section_latex(df, comp, *, methods, groups, labels, pit_figure=None, pm="PM"
         out += [
             r"\begin{figure}[H]",
             r"\centering",
-            rf"\includegraphics[width=\linewidth]{{{pit_figure}}}",
+            rf"\includegraphics[width=\linewidth,height=0.35\textheight,keepaspectratio]{{{pit_figure}}}",
             r"\caption{PIT histograms (all angles and test frames of every activity and seed at the largest "
             r"N): flat at the dashed line for a calibrated forecast, U-shaped for an over-confident one.}",
             r"\label{fig:pit}",
