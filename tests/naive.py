@@ -438,3 +438,21 @@ def coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
         prev = obj
     C = fista_codes(Z, D, alpha, C0=C, n_iter=300)
     return D, C, it
+
+
+def similarity_align_per_pose(P_pred, P_true):
+    """PA-MPJPE's alignment one pose at a time: SciPy's Kabsch rotation (``Rotation.align_vectors``), then the
+    least-squares scale given that rotation; a pose with all joints at one point only translated."""
+    from scipy.spatial.transform import Rotation
+
+    out = []
+    for A, B in zip(np.asarray(P_pred, float), np.asarray(P_true, float)):
+        a0, b0 = A.mean(axis=0), B.mean(axis=0)
+        Ac, Bc = A - a0, B - b0
+        norm = float(np.sum(Ac * Ac))
+        if norm == 0.0:
+            out.append(np.broadcast_to(b0, B.shape).copy())
+            continue
+        RA = Rotation.align_vectors(Bc, Ac)[0].apply(Ac)
+        out.append(float(np.sum(RA * Bc)) / norm * RA + b0)
+    return np.stack(out)

@@ -158,6 +158,28 @@ def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
         np.testing.assert_array_equal(a["_pred"][k], b["_pred"][k], err_msg=k)
 
 
+def test_jobs_run_side_by_side_and_a_shutdown_lets_running_jobs_finish(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
+    clients, outs, pids = [], [], []
+    for i in range(2):
+        job = _ping(tmp_path, sleep=2, pid_file=str(tmp_path / f"worker{i}.pid"))
+        job["output"]["path"] = str(tmp_path / f"out{i}.txt")
+        code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+        clients.append(subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ)))
+        outs.append(tmp_path / f"out{i}.txt")
+        pids.append(tmp_path / f"worker{i}.pid")
+    deadline = time.monotonic() + 60
+    while not all(p.exists() for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert all(p.exists() for p in pids) and not any(
+        o.exists() for o in outs
+    )  # both running at once
+    assert jobserver.shutdown(server_socket) is True  # returns once the server is gone
+    assert [c.wait(timeout=60) for c in clients] == [0, 0]
+    assert all(o.exists() for o in outs)
+    assert _server_files(server_socket) == []
+
+
 def test_shutdown_stops_the_server_and_removes_its_files(server_socket, tmp_path):
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
     assert _server_files(server_socket) == ["js.sock", "js.sock.lock", "js.sock.log"]

@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+import naive
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -70,6 +71,21 @@ def test_similarity_align_undoes_rotation_scale_translation_but_not_a_mirror():
         [-1.0, 1.0, 1.0]
     )  # no proper rotation maps a mirror image of 19 points onto them
     assert np.linalg.norm(K.similarity_align(mirrored, P) - P, axis=1).mean() > 10.0
+
+
+def test_similarity_align_of_many_poses_equals_scipy_pose_by_pose():
+    rng = np.random.default_rng(3)
+    P_true = rng.normal(size=(50, 19, 3)) * 300
+    P_pred = P_true + rng.normal(size=P_true.shape) * 120  # noisy copies: well-posed alignments
+    P_pred[1] = rng.normal(size=(19, 3)) * 300  # unrelated pose: a large residual
+    # mirror image: det(V U^T) < 0 before the correction
+    P_pred[2] = P_true[2] * np.array([1.0, -1.0, 1.0])
+    P_pred[3] = np.array([5.0, -2.0, 7.0])  # all joints at one point: translation only
+    got = K.similarity_align(P_pred, P_true)
+    want = naive.similarity_align_per_pose(P_pred, P_true)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got[3], np.broadcast_to(P_true[3].mean(axis=0), (19, 3)), atol=1e-12)
+    np.testing.assert_allclose(K.similarity_align(P_pred[0], P_true[0]), want[0], atol=1e-9)
 
 
 def test_pa_mpjpe_is_zero_for_a_root_rotated_copy_of_the_truth():

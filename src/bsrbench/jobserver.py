@@ -19,8 +19,8 @@ Lifecycle and safety:
 - Every request carries a fingerprint of the package's source files (paths, sizes, mtimes) and of the
   interpreter. A server started from other code answers "stale" and exits, and the job starts a fresh one,
   so an edited model never runs with old code.
-- Each job gets a supervisor fork that forks the worker and watches the client's connection: if the client
-  dies (Snakemake interrupted), the worker is killed. Outputs are written atomically, so nothing half-written
+- Each job is one fork (the worker); the server relays its result and watches the client's connection: if the
+  client dies (Snakemake interrupted), the worker is killed. Outputs are written atomically, so nothing half-written
   is left.
 - Threads: the child limits numba and BLAS to the job's ``threads``.
 - If the server cannot be reached or started, or ``use_server`` is false (cluster executors, where jobs run
@@ -38,10 +38,8 @@ import select
 import signal
 import socket
 import struct
-import subprocess
 import sys
 import time
-import traceback
 from pathlib import Path
 
 #: The server exits after this long without a job (a fallback: the run's end stops it, see the module docstring).
@@ -149,8 +147,21 @@ def _resolve(target):
     return getattr(importlib.import_module(module), name)
 
 
+#: BLAS/OpenMP threads of the serving process, which its forks inherit (None: not a server).
+_SERVER_BLAS_THREADS = None
+
+
+def _limit_blas(threads):
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(int(threads))
+    except ImportError:
+        pass
+
+
 def _limit_threads(threads):
-    """Limit numba and BLAS/OpenMP to ``threads`` in an already-initialized process."""
+    """Limit numba and BLAS/OpenMP to ``threads`` in an already-initialized process (a fork of the server)."""
     for var in _THREAD_VARS:
         if var != "NUMBA_NUM_THREADS":
             os.environ[var] = str(threads)  # for any subprocess of the job
@@ -162,12 +173,8 @@ def _limit_threads(threads):
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     except ImportError:
         pass
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(int(threads))
-    except ImportError:
-        pass
+    if int(threads) != _SERVER_BLAS_THREADS:
+        _limit_blas(threads)
 
 
 def run_local(target, job):
@@ -238,6 +245,8 @@ def _locked(path):
 def _start_server(path, preload=()):
     """Start a server (preloading the modules ``preload``) unless another job is starting one; wait until it
     listens."""
+    import subprocess  # here, not at the top: a job's client never starts a server once one runs
+
     lock = _locked(path)
     try:
         try:
@@ -386,8 +395,17 @@ def ping(job):
 
 
 # -------------------------------------------------------------------------------------------------- server
-def _worker(request, result_w):
-    """The forked worker: the job's directory, log and threads, then the job itself."""
+def _worker(request, conn, result_w, inherited):
+    """The forked worker: the job's directory, log and threads, then the job itself; its result goes to the pipe
+    ``result_w``. ``inherited``: the server's descriptors (listening socket, other jobs' connections and pipes)."""
+    import traceback
+
+    for fd in inherited:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    conn.close()
     status, detail = "ok", None
     try:
         os.chdir(request["cwd"])
@@ -415,44 +433,62 @@ def _worker(request, result_w):
     os._exit(0)
 
 
-def _supervise(conn, request):
-    """Fork the worker; relay its result to the client, or kill it if the client goes away."""
+class _Job:
+    """A running job as the server sees it: the worker's pid, the client's connection, the worker's result pipe."""
+
+    def __init__(self, pid, conn, result_r):
+        self.pid, self.conn, self.result_r, self.chunks = pid, conn, result_r, []
+
+    def relay(self):
+        """Read the worker's result pipe; at its end, reap the worker and send its result to the client. True when
+        the job is over."""
+        data = os.read(self.result_r, 1 << 16)
+        if data:
+            self.chunks.append(data)
+            return False
+        _, status = os.waitpid(self.pid, 0)
+        try:
+            result = pickle.loads(b"".join(self.chunks))
+        except Exception:
+            result = ("error", f"worker exited with status {status} without a result")
+        try:
+            _send(self.conn, result)
+        except OSError:
+            pass
+        self.close()
+        return True
+
+    def kill(self):
+        """The client closed its connection (its job was killed): kill the worker, so it writes nothing more."""
+        os.kill(self.pid, signal.SIGKILL)
+        os.waitpid(self.pid, 0)
+        self.close()
+
+    def close(self):
+        os.close(self.result_r)
+        self.conn.close()
+
+
+def _start_job(conn, request, srv, jobs):
+    """Fork the worker of ``request``; the server watches its pipe and the client's connection (:class:`_Job`)."""
     result_r, result_w = os.pipe()
+    inherited = [srv.fileno()] + [
+        fd for job in jobs.values() for fd in (job.conn.fileno(), job.result_r)
+    ]
     pid = os.fork()
     if pid == 0:
-        conn.close()
         os.close(result_r)
-        _worker(request, result_w)
+        _worker(request, conn, result_w, inherited)
     os.close(result_w)
-    chunks = []
-    while True:
-        ready, _, _ = select.select([result_r, conn], [], [])
-        if result_r in ready:
-            data = os.read(result_r, 1 << 16)
-            if not data:
-                break
-            chunks.append(data)
-            continue
-        if conn in ready:  # the client should not send more: readable means it closed (job killed)
-            os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            os._exit(0)
-    _, status = os.waitpid(pid, 0)
-    try:
-        result = pickle.loads(b"".join(chunks))
-    except Exception:
-        result = ("error", f"worker exited with status {status} without a result")
-    try:
-        _send(conn, result)
-    except OSError:
-        pass
-    os._exit(0)
+    return _Job(pid, conn, result_r)
 
 
 def _preload(modules):
     """Import the job modules ``modules`` and the modules each lists in its ``PRELOAD``, and run the
     ``warm_up()`` of those that have one (e.g. a model loading its numba kernels): what every forked job would
     otherwise do itself."""
+    import traceback
+
     for name in modules:
         try:
             module = importlib.import_module(name)
@@ -469,10 +505,14 @@ def _preload(modules):
 
 
 def serve(path, idle=IDLE_SECONDS, preload=()):
-    """Import the job modules ``preload`` (:func:`_preload`), listen on ``path`` and fork a supervisor per
-    request, until asked to shut down, until every Snakemake process it served for is gone, or until idle for
-    ``idle`` seconds; then remove its files."""
+    """Import the job modules ``preload`` (:func:`_preload`), listen on ``path`` and fork a worker per request,
+    relaying each worker's result to its client, until asked to shut down, until every Snakemake process it served
+    for is gone, or until idle for ``idle`` seconds; then finish the running jobs and remove its files."""
+    global _SERVER_BLAS_THREADS
     _preload(preload)
+    # once here rather than in every worker: threadpoolctl's scan of the loaded libraries costs tens of ms
+    _limit_blas(1)
+    _SERVER_BLAS_THREADS = 1
     # Move everything imported so far out of the garbage collector's reach: a forked job that runs a collection
     # would otherwise write to (and so copy) every page of the server's objects.
     gc.freeze()
@@ -484,25 +524,32 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
     srv.bind(str(path))
     socket_ino = os.stat(path).st_ino
     srv.listen(64)
-    srv.settimeout(1.0)
-    children, owners, last = set(), set(), time.monotonic()
+    jobs, owners, last, accepting = {}, set(), time.monotonic(), True
     try:
-        while True:
-            for pid in list(children):
-                if os.waitpid(pid, os.WNOHANG)[0]:
-                    children.discard(pid)
-            if children:
+        while accepting or jobs:
+            watched = [srv] if accepting else []
+            for job in jobs.values():
+                watched += [job.result_r, job.conn]
+            ready = set(select.select(watched, [], [], 1.0)[0])
+            for key, job in list(jobs.items()):
+                if job.result_r in ready:
+                    if job.relay():
+                        del jobs[key]
+                elif job.conn in ready:  # the client should not send more: readable means it closed
+                    job.kill()
+                    del jobs[key]
+            if jobs:
                 last = time.monotonic()
-            elif time.monotonic() - last > idle:
-                break
-            elif owners and not any(_alive(pid) for pid in owners):
-                break  # the Snakemake run ended without the shutdown hook (killed)
-            try:
-                conn, _ = srv.accept()
-            except TimeoutError:
+            if not accepting:
                 continue
+            if srv not in ready:
+                if not jobs and time.monotonic() - last > idle:
+                    accepting = False
+                elif not jobs and owners and not any(_alive(pid) for pid in owners):
+                    accepting = False  # the Snakemake run ended without the shutdown hook (killed)
+                continue
+            conn, _ = srv.accept()
             last = time.monotonic()
-            conn.settimeout(None)
             try:
                 request = _recv(conn)
             except (EOFError, OSError, pickle.UnpicklingError):
@@ -511,23 +558,21 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
             if request.get("shutdown"):
                 _send(conn, ("bye", None))
                 conn.close()
-                break
+                accepting = False
+                continue
             if request.get("owner"):
                 owners.add(int(request["owner"]))
             if request.get("fingerprint") != fp:  # the client hashed the sources just now
                 _send(conn, ("stale", None))
                 conn.close()
-                break
-            pid = os.fork()
-            if pid == 0:
-                srv.close()
-                _supervise(conn, request)
-            conn.close()
-            children.add(pid)
+                accepting = False
+                continue
+            job = _start_job(conn, request, srv, jobs)
+            jobs[job.pid] = job
     finally:
         srv.close()
-        for pid in children:  # supervisors of jobs still running: they end with their client
-            os.waitpid(pid, 0)
+        for job in jobs.values():  # only after an error of the server itself: stop its workers
+            job.kill()
         with _locked(path) as lock:
             _remove_files(path, lock, socket_ino)
 

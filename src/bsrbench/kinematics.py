@@ -16,8 +16,8 @@ The positions scored are those of the 19 pose joints (the root included, at the 
 * MPJPE: mean over frames and joints of the Euclidean distance between predicted and true joint positions;
 * PA-MPJPE: the same after aligning each predicted pose to the true one by the similarity transform (rotation,
   uniform scale, translation) that minimises the squared distances (Procrustes analysis; the rotation is the
-  proper rotation of Kabsch's solution, from ``scipy.spatial.transform.Rotation.align_vectors``, and the scale
-  is the least-squares one given that rotation, as in the usual PA-MPJPE code, e.g. Kanazawa et al.'s HMR).
+  proper rotation of Kabsch's solution, for all poses at once, and the scale is the least-squares one given that
+  rotation, as in the usual PA-MPJPE code, e.g. Kanazawa et al.'s HMR).
 
 Lengths are converted to mm with the skeleton's unit (:data:`MM_PER_UNIT`): the Daz-friendly CMU BVH release is
 in cm, the 3dsMax-friendly release and the CMU ASF files in the ASF unit of ``length 0.45`` (1/0.45 inch), and
@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .errors import InputError
 
@@ -281,19 +280,23 @@ def per_joint_position_error(P_true, P_pred):
 
 
 def similarity_align(P_pred, P_true):
-    """``P_pred`` (S, 3) moved by the similarity transform (proper rotation, scale, translation) that best fits it
-    to ``P_true`` (S, 3) in least squares."""
+    """``P_pred`` (..., S, 3) moved by the similarity transform (proper rotation, scale, translation) that best
+    fits it to ``P_true`` (..., S, 3) in least squares, one transform per pose of the leading axes.
+
+    The rotation is Kabsch's: from the SVD ``U S V^T`` of the 3 x 3 cross-covariance of the centred poses,
+    ``R = V diag(1, 1, d) U^T`` with ``d = sign det(V U^T)`` so that ``R`` is proper (Umeyama, PAMI 1991)."""
     A = np.asarray(P_pred, dtype=float)
     B = np.asarray(P_true, dtype=float)
-    a0, b0 = A.mean(axis=0), B.mean(axis=0)
+    a0, b0 = A.mean(axis=-2, keepdims=True), B.mean(axis=-2, keepdims=True)
     Ac, Bc = A - a0, B - b0
-    norm = float(np.sum(Ac * Ac))
-    if norm == 0.0:  # all joints at one point: only the translation can be fitted
-        return np.broadcast_to(b0, B.shape).copy()
-    rot, _ = Rotation.align_vectors(Bc, Ac)  # rot.apply(Ac) ~ Bc
-    RA = rot.apply(Ac)
-    scale = float(np.sum(RA * Bc)) / norm
-    return scale * RA + b0
+    U, _, Vt = np.linalg.svd(np.swapaxes(Ac, -1, -2) @ Bc)
+    d = np.sign(np.linalg.det(U @ Vt))
+    Vt[..., 2, :] *= d[..., None]
+    RA = Ac @ (U @ Vt)  # row vectors: each row a rotated by R = (U Vt)^T
+    norm = np.sum(Ac * Ac, axis=(-2, -1))
+    # all joints at one point: only the translation can be fitted
+    scale = np.divide(np.sum(RA * Bc, axis=(-2, -1)), norm, out=np.zeros_like(norm), where=norm > 0)
+    return scale[..., None, None] * RA + b0
 
 
 def mpjpe(y_true, y_pred, skeleton):
@@ -305,8 +308,7 @@ def mpjpe(y_true, y_pred, skeleton):
 def pa_mpjpe(y_true, y_pred, skeleton):
     """MPJPE (mm) after aligning every predicted pose to the true one (:func:`similarity_align`)."""
     Pt, Pp = _pair(skeleton, y_true, y_pred)
-    aligned = np.stack([similarity_align(p, t) for p, t in zip(Pp, Pt)])
-    return float(per_joint_position_error(Pt, aligned).mean())
+    return float(per_joint_position_error(Pt, similarity_align(Pp, Pt)).mean())
 
 
 def features_pose_skeleton(features, source):
@@ -337,3 +339,9 @@ def features_pose_skeleton(features, source):
     if "Y" in keys:
         ps.check_angles(np.asarray(features["Y"])[:1], "the features' poses Y")
     return ps
+
+
+def warm_up():
+    """Import the skeleton readers and run forward kinematics once (the authors' skeleton), e.g. in a job server
+    before it forks the jobs."""
+    hsc_pose_skeleton()

@@ -5,6 +5,7 @@ Section "Experimental Results"): error = mean over the 57 angles of the per-angl
 over 10 random splits. Nothing here reads Snakemake objects or the configuration: the jobs pass plain values.
 """
 
+import functools
 import platform
 import time
 from dataclasses import dataclass
@@ -134,8 +135,8 @@ def inverse_std(transform, Z_mean, Z_std):
     return np.insert(Z_std[:, :-2], transform.column, sd_heading, axis=1)
 
 
-def package_versions():
-    """Versions of the packages that determine the numbers (and the Python version)."""
+@functools.cache
+def _versions():
     out = {"python": platform.python_version()}
     for name in _VERSION_PACKAGES:
         try:
@@ -143,6 +144,17 @@ def package_versions():
         except metadata.PackageNotFoundError:
             out[name] = None
     return out
+
+
+def package_versions():
+    """Versions of the packages that determine the numbers (and the Python version); read once per process,
+    since reading a package's metadata costs milliseconds."""
+    return dict(_versions())
+
+
+def warm_up():
+    """Read the package versions once, e.g. in a job server before it forks the jobs."""
+    _versions()
 
 
 def cross_validate(spec, features, *, estimator, params, grid, folds=5, cv_params=None):

@@ -263,3 +263,10 @@ DEFAULT_GRID = {
     "RidgeRegressor": {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]},
 }
 """Hyper-parameter grids used by the study for the two references (keyed by class name)."""
+
+
+def warm_up():
+    """A tiny nearest-neighbour fit and prediction, e.g. in a job server before it forks the jobs: scikit-learn's
+    neighbour search builds its thread-pool controller (a scan of the loaded libraries) once, on first use."""
+    X = np.arange(6.0).reshape(3, 2)
+    NearestNeighbourRegressor().fit(X, X).predict(X[:1])
