@@ -158,6 +158,29 @@ def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
         np.testing.assert_array_equal(a["_pred"][k], b["_pred"][k], err_msg=k)
 
 
+def test_killed_server_kills_its_worker_and_the_client_runs_the_job_itself(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
+    server_pid = _listening_pid(server_socket)
+    pid_file = tmp_path / "worker.pid"
+    job = _ping(tmp_path, sleep=5, pid_file=str(pid_file))
+    (tmp_path / "out.txt").unlink()
+    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+    client = subprocess.Popen(
+        [sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 60
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    worker = int(pid_file.read_text())
+    os.kill(server_pid, signal.SIGKILL)
+    _wait_gone(worker, timeout=2)  # killed with its server, long before its 5 s sleep ends
+    _, err = client.communicate(timeout=60)
+    assert client.returncode == 0 and "running in-process" in err
+    assert (
+        int((tmp_path / "out.txt").read_text()) == client.pid
+    )  # written by the client, not the worker
+
+
 def test_jobs_run_side_by_side_and_a_shutdown_lets_running_jobs_finish(server_socket, tmp_path):
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
     clients, outs, pids = [], [], []
@@ -247,6 +270,7 @@ def _wait_gone(pid, timeout=30):
         except (ProcessLookupError, FileNotFoundError):
             return
         time.sleep(0.05)
+    pytest.fail(f"process {pid} still alive after {timeout} s")
     pytest.fail(f"process {pid} still alive")
 
 

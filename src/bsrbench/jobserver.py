@@ -359,9 +359,13 @@ def _remove_files(path, lock, socket_ino):
         pass
     log = Path(f"{path}.log")
     try:
-        if log.stat().st_size == 0:
+        st = log.stat()
+        if st.st_size == 0:
             log.unlink()
-        else:
+        elif (os.fstat(2).st_dev, os.fstat(2).st_ino) != (
+            st.st_dev,
+            st.st_ino,
+        ):  # not into the log itself
             print(f"bsrbench.jobserver: the server wrote to {log} (kept)", file=sys.stderr)
     except FileNotFoundError:
         pass
@@ -427,10 +431,22 @@ def _worker(request, conn, result_w, inherited):
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except Exception:
-        pass
-    os.write(result_w, pickle.dumps((status, detail)))
-    os._exit(0)
+        os.write(result_w, pickle.dumps((status, detail)))
+    finally:
+        os._exit(0)  # never return into the server's code, whatever failed
+
+
+def _die_with_server(server_pid):
+    """Have the kernel kill this worker if the server dies (Linux ``PR_SET_PDEATHSIG``): its client then runs the
+    job in-process, and nothing else may write the job's outputs."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != server_pid:  # the server died before the call
+        os._exit(1)
 
 
 class _Job:
@@ -475,8 +491,10 @@ def _start_job(conn, request, srv, jobs):
     inherited = [srv.fileno()] + [
         fd for job in jobs.values() for fd in (job.conn.fileno(), job.result_r)
     ]
+    server_pid = os.getpid()
     pid = os.fork()
     if pid == 0:
+        _die_with_server(server_pid)
         os.close(result_r)
         _worker(request, conn, result_w, inherited)
     os.close(result_w)
@@ -510,6 +528,8 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
     for is gone, or until idle for ``idle`` seconds; then finish the running jobs and remove its files."""
     global _SERVER_BLAS_THREADS
     _preload(preload)
+    import ctypes  # noqa: F401  (for the workers' _die_with_server, imported once here)
+
     # once here rather than in every worker: threadpoolctl's scan of the loaded libraries costs tens of ms
     _limit_blas(1)
     _SERVER_BLAS_THREADS = 1
