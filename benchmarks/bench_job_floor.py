@@ -122,8 +122,7 @@ class Revision:
             [
                 sys.executable,
                 "-c",
-                "import sys; from bsrbench import jobserver; "
-                f"jobserver.shutdown({str(self.dir / 's.sock')!r})",
+                f"from bsrbench import jobserver; jobserver.shutdown({str(self.dir / 's.sock')!r})",
             ],
             env=self.env,
         )

@@ -362,10 +362,7 @@ def _remove_files(path, lock, socket_ino):
         st = log.stat()
         if st.st_size == 0:
             log.unlink()
-        elif (os.fstat(2).st_dev, os.fstat(2).st_ino) != (
-            st.st_dev,
-            st.st_ino,
-        ):  # not into the log itself
+        elif not os.path.samestat(os.fstat(2), st):  # not into the log itself (a server's stderr)
             print(f"bsrbench.jobserver: the server wrote to {log} (kept)", file=sys.stderr)
     except FileNotFoundError:
         pass
@@ -436,17 +433,27 @@ def _worker(request, conn, result_w, inherited):
         os._exit(0)  # never return into the server's code, whatever failed
 
 
+#: libc's ``prctl`` in a serving process (None elsewhere, or where libc has none), for :func:`_die_with_server`.
+_PRCTL = None
+
+
 def _die_with_server(server_pid):
     """Have the kernel kill this worker if the server dies (Linux ``PR_SET_PDEATHSIG``): its client then runs the
     job in-process, and nothing else may write the job's outputs."""
+    if _PRCTL is None:
+        return
+    _PRCTL(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
+    if os.getppid() != server_pid:  # the server died before the call
+        os._exit(1)
+
+
+def _find_prctl():
     import ctypes
 
     try:
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
+        return ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
-        return
-    if os.getppid() != server_pid:  # the server died before the call
-        os._exit(1)
+        return None
 
 
 class _Job:
@@ -526,10 +533,9 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
     """Import the job modules ``preload`` (:func:`_preload`), listen on ``path`` and fork a worker per request,
     relaying each worker's result to its client, until asked to shut down, until every Snakemake process it served
     for is gone, or until idle for ``idle`` seconds; then finish the running jobs and remove its files."""
-    global _SERVER_BLAS_THREADS
+    global _SERVER_BLAS_THREADS, _PRCTL
     _preload(preload)
-    import ctypes  # noqa: F401  (for the workers' _die_with_server, imported once here)
-
+    _PRCTL = _find_prctl()
     # once here rather than in every worker: threadpoolctl's scan of the loaded libraries costs tens of ms
     _limit_blas(1)
     _SERVER_BLAS_THREADS = 1

@@ -643,8 +643,9 @@ def _plain(text):
 
 def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, variants=None):
     """The README's paragraph (markdown) on the paper's reasons, from a published table: a bullet per variant with
-    its difference to ``base`` per N, the interval and the cell counts; then the training and test errors. ``variants`` None: found from the table's
-    ``params`` (:func:`variants_from_results`). InputError if there is no mechanism variant."""
+    its difference to ``base`` per N, the interval and the cell counts; then the training and test errors.
+    ``variants`` None: found from the table's ``params`` (:func:`variants_from_results`). InputError if there is
+    no mechanism variant."""
     labels = labels or {}
     if variants is None:
         variants = variants_from_results(results, base=base)
