@@ -276,3 +276,31 @@ def test_readme_paragraph_between_markers(tmp_path):
     assert published_main(["mechanisms", str(plain)]) == 2
     with pytest.raises(Exception, match="mechanisms"):
         update_mechanisms(other, "x")
+
+
+def test_published_mechanisms_refuses_a_variant_missing_cells(tmp_path, capsys):
+    df = _table()
+    gap = df[~((df["method"] == "PMshift") & (df["n_train"] == 60))]
+    src = tmp_path / "gap.csv"
+    gap.to_csv(src, index=False)
+    readme = tmp_path / "README.md"
+    readme.write_text("<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n")
+    assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 2
+    err = capsys.readouterr().err
+    assert str(src) in err and "'PMshift'" in err and "2 of the 4 cells" in err
+    assert "golf/60" in err and "run/60" in err
+    assert readme.read_text() == "<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n"
+    # the full table passes the same check
+    assert (
+        published_main(["mechanisms", str(tmp_path / "x.csv")]) == 2
+    )  # missing file: an error, not a crash
+    df.to_csv(src, index=False)
+    assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 0
+
+
+def test_published_mechanisms_no_variant_names_the_table(tmp_path, capsys):
+    plain = tmp_path / "plain.csv"
+    _table().query("method in ['PM', 'NN1']").to_csv(plain, index=False)
+    assert published_main(["mechanisms", str(plain)]) == 2
+    err = capsys.readouterr().err
+    assert f"{plain}: no mechanism variant of 'PM'" in err

@@ -641,6 +641,28 @@ def _plain(text):
     )
 
 
+def _check_complete(results, base, variants):
+    """InputError naming the variant and the cells if a variant lacks a cell of ``base``: a per-N mean over
+    fewer activities would be read as the whole study's."""
+
+    def cells(m):
+        return set(
+            map(tuple, results.loc[results["method"] == m, cmp.CELL].drop_duplicates().values)
+        )
+
+    want = cells(base)
+    for m in variants:
+        lack = sorted(want - cells(m), key=str)
+        if lack:
+            shown = ", ".join("/".join(str(v) for v in c) for c in lack[:4]) + (
+                " ..." if len(lack) > 4 else ""
+            )
+            raise InputError(
+                f"variant {m!r} has no rows in {len(lack)} of the {len(want)} cells of {base!r} "
+                f"({'/'.join(cmp.CELL)}: {shown}); expected every cell of the base"
+            )
+
+
 def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, variants=None):
     """The README's paragraph (markdown) on the paper's reasons, from a published table: a bullet per variant with
     its difference to ``base`` per N, the interval and the cell counts; then the training and test errors.
@@ -654,6 +676,7 @@ def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, varia
             f"no mechanism variant of {base!r} in the table (methods with its estimator whose params differ from "
             f"its own only in {sorted(MECHANISM_OPTIONS)}); expected a study like config/ablation-mechanisms.yaml"
         )
+    _check_complete(results, base, variants)
     table = mechanism_table(results, comparisons, base=base, variants=variants)
     lab = lambda m: labels.get(m, m)  # noqa: E731
     sentences = []

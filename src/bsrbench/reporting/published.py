@@ -443,7 +443,12 @@ def main(argv=None):
             from .mechanisms import readme_paragraph
 
             df = read_results(args.table)
-            paragraph = readme_paragraph(df, cmp.comparisons(df))
+            try:
+                paragraph = readme_paragraph(df, cmp.comparisons(df))
+            except DataFileError:
+                raise
+            except InputError as e:  # about the table's contents: name the table
+                raise DataFileError(args.table, str(e)) from None
             if args.update:
                 update_mechanisms(args.update, paragraph)
             else:
