@@ -290,10 +290,8 @@ def test_published_mechanisms_refuses_a_variant_missing_cells(tmp_path, capsys):
     assert str(src) in err and "'PMshift'" in err and "2 of the 4 cells" in err
     assert "golf/60" in err and "run/60" in err
     assert readme.read_text() == "<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n"
+    assert published_main(["mechanisms", str(tmp_path / "x.csv")]) == 2  # a missing file: exit 2
     # the full table passes the same check
-    assert (
-        published_main(["mechanisms", str(tmp_path / "x.csv")]) == 2
-    )  # missing file: an error, not a crash
     df.to_csv(src, index=False)
     assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 0
 
