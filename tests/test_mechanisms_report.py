@@ -287,10 +287,20 @@ def test_published_mechanisms_refuses_a_variant_missing_cells(tmp_path, capsys):
     readme.write_text("<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n")
     assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 2
     err = capsys.readouterr().err
-    assert str(src) in err and "'PMshift'" in err and "2 of the 4 cells" in err
+    assert str(src) in err and "variant 'PMshift'" in err and "2 of the 4 cells" in err
     assert "golf/60" in err and "run/60" in err
     assert readme.read_text() == "<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n"
     assert published_main(["mechanisms", str(tmp_path / "x.csv")]) == 2  # a missing file: exit 2
+    # the base missing a cell its variants have, and the base missing altogether
+    df[~((df["method"] == "PM") & (df["n_train"] == 60) & (df["activity"] == "run"))].to_csv(
+        src, index=False
+    )
+    assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 2
+    assert "base 'PM' has no rows in 1 of the 4 cells" in capsys.readouterr().err
+    df[df["method"] != "PM"].to_csv(src, index=False)
+    assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 2
+    assert "no rows of the base method 'PM'" in capsys.readouterr().err
+    assert readme.read_text() == "<!-- mechanisms -->\nOLD\n<!-- /mechanisms -->\n"
     # the full table passes the same check
     df.to_csv(src, index=False)
     assert published_main(["mechanisms", str(src), "--update", str(readme)]) == 0

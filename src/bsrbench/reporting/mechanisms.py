@@ -642,24 +642,26 @@ def _plain(text):
 
 
 def _check_complete(results, base, variants):
-    """InputError naming the variant and the cells if a variant lacks a cell of ``base``: a per-N mean over
-    fewer activities would be read as the whole study's."""
+    """InputError naming the method and the cells if ``base`` or a variant lacks a cell that another of them has:
+    a per-N mean over fewer activities would be read as the whole study's."""
 
     def cells(m):
         return set(
             map(tuple, results.loc[results["method"] == m, cmp.CELL].drop_duplicates().values)
         )
 
-    want = cells(base)
-    for m in variants:
-        lack = sorted(want - cells(m), key=str)
+    have = {m: cells(m) for m in [base, *variants]}
+    want = set().union(*have.values())
+    for m, got in have.items():
+        lack = sorted(want - got, key=str)
         if lack:
             shown = ", ".join("/".join(str(v) for v in c) for c in lack[:4]) + (
                 " ..." if len(lack) > 4 else ""
             )
             raise InputError(
-                f"variant {m!r} has no rows in {len(lack)} of the {len(want)} cells of {base!r} "
-                f"({'/'.join(cmp.CELL)}: {shown}); expected every cell of the base"
+                f"{'base' if m == base else 'variant'} {m!r} has no rows in {len(lack)} of the {len(want)} "
+                f"cells of {base!r} and its variants ({'/'.join(cmp.CELL)}: {shown}); expected each of them in "
+                "every cell"
             )
 
 
@@ -669,6 +671,10 @@ def readme_paragraph(results, comparisons=None, *, base="PM", labels=None, varia
     ``variants`` None: found from the table's ``params`` (:func:`variants_from_results`). InputError if there is
     no mechanism variant."""
     labels = labels or {}
+    if not (results["method"] == base).any():
+        raise InputError(
+            f"no rows of the base method {base!r} in the table; expected its mechanism variants beside it"
+        )
     if variants is None:
         variants = variants_from_results(results, base=base)
     if not variants:
