@@ -17,13 +17,23 @@ from bsrbench import jobserver
 
 
 @pytest.fixture
-def server_socket(tmp_path, monkeypatch):
-    """A private server for this test (started on first use), shut down afterwards."""
-    path = tmp_path / "js.sock"
-    monkeypatch.setenv("BSRBENCH_JOBSERVER_SOCKET", str(path))
+def runtime_base(tmp_path, monkeypatch):
+    """An XDG_RUNTIME_DIR of this test's own (so no test touches the user's real one)."""
+    base = tmp_path / "run"
+    base.mkdir(mode=0o700)
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(base))
+    monkeypatch.delenv("BSRBENCH_JOBSERVER_SOCKET", raising=False)
+    return base
+
+
+@pytest.fixture
+def server_socket(runtime_base, monkeypatch):
+    """The socket of a private server for this test (started on first use), shut down afterwards."""
     monkeypatch.delenv(jobserver.OWNER_VAR, raising=False)
     for var in jobserver._BATCH_JOB_VARS:
         monkeypatch.delenv(var, raising=False)
+    path = jobserver.socket_path()
+    assert path.parent == runtime_base / "bsrbench"
     yield path
     jobserver.shutdown(path)
 
@@ -78,7 +88,7 @@ def test_stale_server_is_replaced(server_socket, tmp_path):
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.connect(str(server_socket))
         jobserver._send(s, {"fingerprint": "other code", "target": "", "job": {}, "cwd": "/"})
-        assert jobserver._recv(s) == ("stale", None)
+        assert jobserver._recv(s) == {"status": "stale", "detail": None}
     deadline = time.monotonic() + 10
     while server_socket.exists() and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -205,7 +215,8 @@ def test_jobs_run_side_by_side_and_a_shutdown_lets_running_jobs_finish(server_so
 
 def test_shutdown_stops_the_server_and_removes_its_files(server_socket, tmp_path):
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
-    assert _server_files(server_socket) == ["js.sock", "js.sock.lock", "js.sock.log"]
+    name = server_socket.name
+    assert _server_files(server_socket) == [name, f"{name}.lock", f"{name}.log"]
     server_pid = _listening_pid(server_socket)
     assert jobserver.shutdown(server_socket) is True
     assert _server_files(server_socket) == []
@@ -222,11 +233,8 @@ def test_server_stops_when_the_snakemake_process_it_served_is_gone(
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
     server_pid = _listening_pid(server_socket)
     time.sleep(1.5)
-    assert _server_files(server_socket) == [
-        "js.sock",
-        "js.sock.lock",
-        "js.sock.log",
-    ]  # owner alive: serving
+    name = server_socket.name
+    assert _server_files(server_socket) == [name, f"{name}.lock", f"{name}.log"]  # owner alive: serving
     owner.kill()
     owner.wait()
     _wait_gone(server_pid, timeout=10)
@@ -238,7 +246,7 @@ def test_shutdown_removes_what_a_killed_server_left(server_socket, tmp_path):
     server_pid = _listening_pid(server_socket)
     os.kill(server_pid, signal.SIGKILL)
     _wait_gone(server_pid)
-    assert "js.sock" in _server_files(server_socket)
+    assert server_socket.name in _server_files(server_socket)
     assert jobserver.shutdown(server_socket) is False
     assert _server_files(server_socket) == []
 

@@ -23,8 +23,12 @@ Lifecycle and safety:
   client dies (Snakemake interrupted), the worker is killed. Outputs are written atomically, so nothing half-written
   is left.
 - Threads: the child limits numba and BLAS to the job's ``threads``.
-- If the server cannot be reached or started, or ``use_server`` is false (cluster executors, where jobs run
-  on other nodes), the job runs in the calling process.
+- Only this user: the socket, lock and log live in a directory private to the user (:func:`runtime_dir`,
+  refused if another user owns it or may enter it); client and server check each other's uid on the socket
+  (``SO_PEERCRED``) and close a foreign peer's connection unread; and they exchange plain JSON, never pickles, so
+  no peer can make the other run code by what it sends.
+- If the server cannot be reached, started or trusted, or ``use_server`` is false (cluster executors, where jobs
+  run on other nodes), the job runs in the calling process (with one line on stderr why).
 """
 
 import errno
@@ -32,11 +36,12 @@ import fcntl
 import gc
 import hashlib
 import importlib
+import json
 import os
-import pickle
 import select
 import signal
 import socket
+import stat
 import struct
 import sys
 import time
@@ -54,8 +59,28 @@ _THREAD_VARS = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPEN
 
 
 # ------------------------------------------------------------------------------------------------- framing
+#: Largest message accepted (a job spec or a traceback is a few kB).
+_MAX_MESSAGE = 1 << 24
+
+
+class ProtocolError(OSError):
+    """A peer sent something that is not a message of this protocol (or a message could not be encoded)."""
+
+
+class PeerRefused(OSError):
+    """The process at the other end of the socket runs as another user (or its user cannot be checked)."""
+
+
+class UnsafeDirectory(OSError):
+    """The job server's directory exists but is not private to this user."""
+
+
 def _send(sock, obj):
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    """Send ``obj`` as JSON, prefixed with its length."""
+    try:
+        data = json.dumps(obj).encode()
+    except (TypeError, ValueError) as exc:
+        raise ProtocolError(f"message not JSON-serializable: {exc}") from None
     sock.sendall(struct.pack("!Q", len(data)) + data)
 
 
@@ -70,8 +95,39 @@ def _recv_exact(sock, n):
 
 
 def _recv(sock):
+    """Receive one message of :func:`_send`: plain data (dicts, lists, strings, numbers), whatever the peer sent."""
     (n,) = struct.unpack("!Q", _recv_exact(sock, 8))
-    return pickle.loads(_recv_exact(sock, n))
+    if n > _MAX_MESSAGE:
+        raise ProtocolError(f"message of {n} bytes announced, more than {_MAX_MESSAGE}")
+    try:
+        return json.loads(_recv_exact(sock, n))
+    except (UnicodeDecodeError, ValueError):
+        raise ProtocolError("a message that is not JSON") from None
+
+
+def _reply(status, detail=None):
+    return {"status": status, "detail": detail}
+
+
+def _check_reply(reply):
+    """(status, detail) of a server's reply; ProtocolError unless it is one."""
+    if (
+        not isinstance(reply, dict)
+        or reply.get("status") not in ("ok", "error", "stale", "bye")
+        or not isinstance(reply.get("detail"), (str, type(None)))
+    ):
+        raise ProtocolError("a reply that is not a job server's")
+    return reply["status"], reply["detail"]
+
+
+def _peer_uid(sock):
+    """The uid of the process at the other end of the Unix socket ``sock`` (for a client: the process that listens;
+    for the server: the process that connected), from the kernel (``SO_PEERCRED``)."""
+    if not hasattr(socket, "SO_PEERCRED"):
+        raise PeerRefused("this platform has no SO_PEERCRED to check the job server's user")
+    ucred = struct.Struct("3i")  # struct ucred: pid, uid, gid
+    _, uid, _ = ucred.unpack(sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, ucred.size))
+    return uid
 
 
 # --------------------------------------------------------------------------------------------- identities
@@ -84,16 +140,50 @@ def fingerprint():
     return h.hexdigest()
 
 
+def runtime_dir():
+    """This user's private directory for the server's socket, lock and log, created if absent:
+    ``$XDG_RUNTIME_DIR/bsrbench``, else ``$TMPDIR/bsrbench-<uid>`` (``/tmp`` without ``TMPDIR``).
+
+    Like ssh-agent's and tmux's, it must be a real directory (not a link) owned by this user with no access for
+    group or others: otherwise another user could put a socket of theirs where the jobs connect, or read the
+    log. Raises :class:`UnsafeDirectory` (naming the path, the owner and mode found, and what is expected)."""
+    uid = os.geteuid()
+    base = os.environ.get("XDG_RUNTIME_DIR")
+    if base:
+        path = Path(base) / "bsrbench"
+    else:
+        path = Path(os.environ.get("TMPDIR") or "/tmp") / f"bsrbench-{uid}"
+    try:
+        os.mkdir(path, 0o700)  # the umask can only remove bits of 0700 ...
+        os.chmod(path, 0o700)  # ... so restore the owner's, which a umask such as 0o777 would leave out
+    except FileExistsError:
+        pass
+    st = os.lstat(path)  # whatever was there before: check it, do not follow it
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid or st.st_mode & 0o077:
+        kind = (
+            "a directory"
+            if stat.S_ISDIR(st.st_mode)
+            else "a symbolic link"
+            if stat.S_ISLNK(st.st_mode)
+            else "not a directory"
+        )
+        raise UnsafeDirectory(
+            f"unsafe job server directory {path}: {kind} owned by uid {st.st_uid} with mode "
+            f"{stat.S_IMODE(st.st_mode):04o}; expected a directory owned by uid {uid} (this user) with mode "
+            "0700 (no access for group or others)"
+        )
+    return path
+
+
 def socket_path(cwd=None):
-    """A per-user, per-environment, per-working-directory (``cwd``, default the current one) socket path (short
-    enough for AF_UNIX); ``BSRBENCH_JOBSERVER_SOCKET`` overrides it (tests use their own server). The server's
-    lock and log files are this path + ``.lock`` and ``.log``."""
+    """The server's socket in :func:`runtime_dir`, one per environment and working directory (``cwd``, default the
+    current one); the server's lock and log files are this path + ``.lock`` and ``.log``.
+    ``BSRBENCH_JOBSERVER_SOCKET`` overrides it, as given (benchmarks run servers of other revisions there)."""
     if os.environ.get("BSRBENCH_JOBSERVER_SOCKET"):
         return Path(os.environ["BSRBENCH_JOBSERVER_SOCKET"])
     cwd = Path(cwd or os.getcwd()).resolve()
     key = hashlib.sha256(f"{sys.prefix}|{_PKG}|{cwd}".encode()).hexdigest()[:16]
-    base = Path(os.environ.get("XDG_RUNTIME_DIR") or "/tmp")
-    return base / f"bsrbench-jobserver-{os.getuid()}-{key}.sock"
+    return runtime_dir() / f"jobserver-{key}.sock"
 
 
 # ------------------------------------------------------------------------------------------------- running
@@ -205,6 +295,8 @@ def run(target, job, *, use_server=True):
     if use_server and not in_batch_job():
         try:
             status, detail = _run_remote(target, job)
+        except (PeerRefused, UnsafeDirectory) as exc:
+            print(f"bsrbench.jobserver: {exc}; running in-process", file=sys.stderr)
         except (OSError, EOFError, TimeoutError) as exc:
             print(
                 f"bsrbench.jobserver: server not available ({exc}); running in-process",
@@ -219,12 +311,20 @@ def run(target, job, *, use_server=True):
 
 
 def _connect(path):
+    """A connection to the server at ``path``; :class:`PeerRefused` (closed unwritten) if it runs as another
+    user."""
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         sock.connect(str(path))
+        uid = _peer_uid(sock)
     except OSError:
         sock.close()
         raise
+    if uid != os.geteuid():
+        sock.close()
+        raise PeerRefused(
+            f"refused the server at {path}: it runs as uid {uid}, not as this user (uid {os.geteuid()})"
+        )
     return sock
 
 
@@ -251,6 +351,8 @@ def _start_server(path, preload=()):
     try:
         try:
             return _connect(path)
+        except PeerRefused:
+            raise  # never replace a foreign server's socket: the job runs in-process
         except OSError:
             pass
         env = dict(os.environ)
@@ -271,6 +373,8 @@ def _start_server(path, preload=()):
         while time.monotonic() < deadline:
             try:
                 return _connect(path)
+            except PeerRefused:
+                raise
             except OSError:
                 time.sleep(0.05)
         raise TimeoutError(
@@ -286,6 +390,8 @@ def _run_remote(target, job):
     for _ in range(2):
         try:
             sock = _connect(path)
+        except PeerRefused:
+            raise
         except OSError:
             sock = _start_server(path, preload=[target.split(":")[0]])
         with sock:
@@ -299,7 +405,7 @@ def _run_remote(target, job):
                     "owner": _owner(),
                 },
             )
-            status, detail = _recv(sock)
+            status, detail = _check_reply(_recv(sock))
         if status != "stale":
             return status, detail
         # the server ran other code: it is shutting down; wait for its socket to go, then start a new one
@@ -322,14 +428,18 @@ def shutdown(path=None, timeout=30.0):
     Called by the Snakefile's ``onsuccess`` and ``onerror`` handlers. Without a listening server, removes what a
     killed one left (socket, lock, empty log). Returns True if a server was stopped; never raises.
     """
-    path = Path(path) if path else socket_path()
     try:
+        path = Path(path) if path else socket_path()
         try:
             sock = _connect(path)
+        except PeerRefused:
+            raise  # not ours to stop or to remove
         except OSError:
             with _locked(path) as lock:  # no server: tidy up, unless one starts right now
                 try:
                     _connect(path).close()
+                except PeerRefused:
+                    raise
                 except OSError:
                     _remove_files(path, lock, socket_ino=None)
             return False
@@ -428,7 +538,7 @@ def _worker(request, conn, result_w, inherited):
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-        os.write(result_w, pickle.dumps((status, detail)))
+        os.write(result_w, json.dumps(_reply(status, detail)).encode())
     finally:
         os._exit(0)  # never return into the server's code, whatever failed
 
@@ -471,9 +581,9 @@ class _Job:
             return False
         _, status = os.waitpid(self.pid, 0)
         try:
-            result = pickle.loads(b"".join(self.chunks))
-        except Exception:
-            result = ("error", f"worker exited with status {status} without a result")
+            result = json.loads(b"".join(self.chunks))
+        except ValueError:
+            result = _reply("error", f"worker exited with status {status} without a result")
         try:
             _send(self.conn, result)
         except OSError:
@@ -529,6 +639,20 @@ def _preload(modules):
                 traceback.print_exc()  # a failed warm-up only costs the jobs time
 
 
+def _check_request(request):
+    """``request`` if it is a shutdown or a job request (:func:`_run_remote`); ProtocolError if not."""
+    if isinstance(request, dict) and request.get("shutdown") is True:
+        return request
+    if not (
+        isinstance(request, dict)
+        and all(isinstance(request.get(k), str) for k in ("target", "fingerprint", "cwd"))
+        and isinstance(request.get("job"), dict)
+        and isinstance(request.get("owner"), (int, type(None)))
+    ):
+        raise ProtocolError("a request that is not a job server's")
+    return request
+
+
 def serve(path, idle=IDLE_SECONDS, preload=()):
     """Import the job modules ``preload`` (:func:`_preload`), listen on ``path`` and fork a worker per request,
     relaying each worker's result to its client, until asked to shut down, until every Snakemake process it served
@@ -577,19 +701,34 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
             conn, _ = srv.accept()
             last = time.monotonic()
             try:
-                request = _recv(conn)
-            except (EOFError, OSError, pickle.UnpicklingError):
+                uid = _peer_uid(conn)
+            except OSError:
+                uid = None
+            if uid != os.geteuid():  # closed unread: nothing a foreign process sends is even parsed
+                conn.close()
+                print(
+                    f"bsrbench.jobserver: refused a client of uid {uid} (this server runs as uid "
+                    f"{os.geteuid()})",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                continue
+            try:
+                conn.settimeout(10.0)  # a client that connects and sends nothing must not stall the server
+                request = _check_request(_recv(conn))
+                conn.settimeout(None)
+            except (EOFError, OSError):
                 conn.close()
                 continue
             if request.get("shutdown"):
-                _send(conn, ("bye", None))
+                _send(conn, _reply("bye"))
                 conn.close()
                 accepting = False
                 continue
             if request.get("owner"):
                 owners.add(int(request["owner"]))
             if request.get("fingerprint") != fp:  # the client hashed the sources just now
-                _send(conn, ("stale", None))
+                _send(conn, _reply("stale"))
                 conn.close()
                 accepting = False
                 continue
