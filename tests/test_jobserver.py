@@ -3,11 +3,17 @@ code and killed clients are handled."""
 
 import json
 import os
+import pickle
+import re
 import signal
 import socket
+import stat
+import struct
 import subprocess
 import sys
+import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -234,7 +240,11 @@ def test_server_stops_when_the_snakemake_process_it_served_is_gone(
     server_pid = _listening_pid(server_socket)
     time.sleep(1.5)
     name = server_socket.name
-    assert _server_files(server_socket) == [name, f"{name}.lock", f"{name}.log"]  # owner alive: serving
+    assert _server_files(server_socket) == [
+        name,
+        f"{name}.lock",
+        f"{name}.log",
+    ]  # owner alive: serving
     owner.kill()
     owner.wait()
     _wait_gone(server_pid, timeout=10)
@@ -379,3 +389,280 @@ def test_preload_imports_the_job_module_and_runs_the_warm_ups(tmp_path, monkeypa
     monkeypatch.chdir(tmp_path)
     jobserver._preload(["jobs_x", "also_missing_x"])
     assert (tmp_path / "jobs.warm").is_file() and (tmp_path / "model.warm").is_file()
+
+
+# ------------------------------------------------------------------------------ only this user (issue 33)
+def _nobody():
+    """uid and gid of the user ``nobody``; the test is skipped unless it runs as root (as in CI)."""
+    import pwd
+
+    if os.geteuid() != 0:
+        pytest.skip("acting as another user needs root")
+    try:
+        pw = pwd.getpwnam("nobody")
+    except KeyError:
+        pytest.skip("no user nobody")
+    return pw.pw_uid, pw.pw_gid
+
+
+class _Payload:
+    """Unpickling this runs code: it creates the file ``marker``."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return exec, (f"open({self.marker!r}, 'w').write('payload ran')",)
+
+
+def _pickle_message(marker):
+    """A message in the server's former framing (length, pickle) whose unpickling creates ``marker``."""
+    data = pickle.dumps(_Payload(marker))
+    return struct.pack("!Q", len(data)) + data
+
+
+def _run_client(tmp_path, timeout=120):
+    """Run a ping job as the study's jobs do, in a fresh process: (its exit code, its pid, its stderr)."""
+    job = _ping(tmp_path)
+    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True
+    )
+    _, err = proc.communicate(timeout=timeout)  # it must never hang
+    return proc.returncode, proc.pid, err
+
+
+#: A server that binds ``path`` (as root, in the private directory), becomes user ``uid`` before it listens (the
+#: kernel records the listener's credentials at listen()), and answers every connection with ``reply``.
+FAKE_SERVER = """
+import os, socket, sys
+path, uid, gid, reply = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), bytes.fromhex(sys.argv[4])
+srv = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+srv.bind(path)
+if uid != os.geteuid():
+    os.setgroups([])
+    os.setgid(gid)
+    os.setuid(uid)
+srv.listen(8)
+print("listening", flush=True)
+while True:
+    conn, _ = srv.accept()
+    conn.settimeout(5)
+    try:
+        conn.recv(1 << 16)  # the client's request, if it sends one
+        conn.sendall(reply)
+    except OSError:
+        pass
+    conn.close()
+"""
+
+
+@contextmanager
+def _fake_server(path, uid, gid, reply):
+    proc = subprocess.Popen(
+        [sys.executable, "-c", FAKE_SERVER, str(path), str(uid), str(gid), reply.hex()],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout.readline() == "listening\n"
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def test_a_server_of_another_user_is_refused_and_its_reply_never_loaded(server_socket, tmp_path):
+    """Another user's process listening where the jobs connect (here placed past the directory check, which
+    another test covers): the job does not talk to it, runs in-process with one line why, and the reply, which
+    would run code if unpickled (as it did before), is never read."""
+    uid, gid = _nobody()
+    marker = tmp_path / "payload-ran"
+    with _fake_server(server_socket, uid, gid, _pickle_message(marker)) as fake:
+        code, pid, err = _run_client(tmp_path)
+        assert (
+            _listening_pid(server_socket) == fake.pid
+        )  # still its socket: the job started no server
+    expected = (
+        f"bsrbench.jobserver: refused the server at {server_socket}: it runs as uid {uid}, not as this user "
+        f"(uid {os.geteuid()}); running in-process"
+    )
+    assert (
+        not marker.exists()
+    )  # before issue 33's fix, it existed and the job failed with a TypeError
+    assert code == 0 and expected in err.splitlines(), err
+    assert int((tmp_path / "out.txt").read_text()) == pid  # the job ran in the client's own process
+    assert "ping from pid" in (tmp_path / "ping.log").read_text()
+
+
+def test_a_pickled_reply_is_never_loaded_even_from_this_user(server_socket, tmp_path):
+    """Requests and replies are JSON: a server of the same user that answers with a pickle makes the job run
+    in-process, and the pickle runs nothing."""
+    marker = tmp_path / "payload-ran"
+    with _fake_server(server_socket, os.geteuid(), os.getegid(), _pickle_message(marker)):
+        code, pid, err = _run_client(tmp_path)
+    assert not marker.exists()
+    assert code == 0 and "(a message that is not JSON); running in-process" in err, err
+    assert int((tmp_path / "out.txt").read_text()) == pid
+
+
+def test_the_server_never_loads_a_pickled_request(server_socket, tmp_path):
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
+    server_pid = _listening_pid(server_socket)
+    marker = tmp_path / "payload-ran"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.connect(str(server_socket))
+        s.sendall(_pickle_message(marker))
+        assert s.recv(1 << 16) == b""  # closed without a reply
+    assert not marker.exists()
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # and it serves on
+    assert _listening_pid(server_socket) == server_pid
+    assert int((tmp_path / "out.txt").read_text()) != os.getpid()
+
+
+#: A client that becomes user ``uid`` before it connects (the kernel records its credentials at connect()),
+#: connects twice to ``path``: once sending nothing, once sending ``request``; prints what it saw each time.
+FOREIGN_CLIENT = """
+import os, socket, sys
+path, uid, gid, request = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), bytes.fromhex(sys.argv[4])
+os.setgroups([])
+os.setgid(gid)
+os.setuid(uid)
+for data in (b"", request):
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    s.connect(path)
+    try:
+        s.sendall(data)
+        print(repr(s.recv(1 << 16)))
+    except OSError as exc:
+        print(type(exc).__name__)
+    s.close()
+"""
+
+
+def _job_request(tmp_path, output):
+    """The bytes of a valid job request for the server at hand: a ping job writing ``output``."""
+    job = dict(_ping(tmp_path), output={"path": str(output)})
+    request = {
+        "target": "bsrbench.jobserver:ping",
+        "job": job,
+        "fingerprint": jobserver.fingerprint(),
+        "cwd": str(tmp_path),
+        "owner": None,
+    }
+    a, b = socket.socketpair()
+    with a, b:
+        jobserver._send(a, request)
+        a.shutdown(socket.SHUT_WR)
+        return b"".join(iter(lambda: b.recv(1 << 16), b""))
+
+
+def test_a_client_of_another_user_is_refused_unread(server_socket, tmp_path):
+    """Another user's process that reaches the socket (here through a hard link in a directory it may enter: the
+    private directory would stop it, which another test covers) gets its connection closed unread, and its
+    job, which the server runs for this user, does not run."""
+    uid, gid = _nobody()
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
+    server_pid = _listening_pid(server_socket)
+    ours, theirs = tmp_path / "ours.txt", tmp_path / "theirs.txt"
+    with socket.socket(
+        socket.AF_UNIX, socket.SOCK_STREAM
+    ) as s:  # the request is valid: for us it runs
+        s.connect(str(server_socket))
+        s.sendall(_job_request(tmp_path, ours))
+        assert jobserver._recv(s) == {"status": "ok", "detail": None} and ours.exists()
+    with tempfile.TemporaryDirectory() as open_dir:
+        os.chmod(open_dir, 0o711)
+        link = Path(open_dir) / "s.sock"
+        os.link(server_socket, link)
+        os.chmod(link, 0o777)  # connecting needs write permission on the socket
+        out = subprocess.run(
+            [sys.executable, "-c", FOREIGN_CLIENT, str(link), str(uid), str(gid)]
+            + [_job_request(tmp_path, theirs).hex()],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert out.returncode == 0, out.stderr
+    # without sending: EOF; after sending: the kernel's ECONNRESET (closed with its bytes unread) or EPIPE
+    # (closed before it sent)
+    nothing_sent, request_sent = out.stdout.splitlines()
+    assert nothing_sent == "b''" and request_sent in ("ConnectionResetError", "BrokenPipeError")
+    assert not theirs.exists()
+    refusal = f"bsrbench.jobserver: refused a client of uid {uid} (this server runs as uid {os.geteuid()})"
+    assert Path(f"{server_socket}.log").read_text().splitlines() == [refusal, refusal]
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server serves its own user on
+    assert _listening_pid(server_socket) == server_pid
+    assert int((tmp_path / "out.txt").read_text()) != os.getpid()
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o000, 0o777])
+def test_the_private_directory_is_made_for_this_user_only(
+    runtime_base, tmp_path, monkeypatch, umask
+):
+    """$XDG_RUNTIME_DIR/bsrbench, else $TMPDIR/bsrbench-<uid>, mode 0700 whatever the umask."""
+    old = os.umask(umask)
+    try:
+        made = [jobserver.runtime_dir()]
+        monkeypatch.delenv("XDG_RUNTIME_DIR")
+        monkeypatch.setenv("TMPDIR", str(tmp_path))
+        made.append(jobserver.runtime_dir())
+    finally:
+        os.umask(old)
+    assert made == [runtime_base / "bsrbench", tmp_path / f"bsrbench-{os.geteuid()}"]
+    for path in made:
+        st = path.lstat()
+        assert stat.S_ISDIR(st.st_mode) and stat.S_IMODE(st.st_mode) == 0o700
+        assert st.st_uid == os.geteuid()
+    assert jobserver.socket_path().parent == made[1]
+    assert jobserver.runtime_dir() == made[1]  # an existing private directory is used as it is
+
+
+def _unsafe(path, how):
+    """Put at ``path`` what ``how`` names; the kind, uid and mode the refusal should report."""
+    me = os.geteuid()
+    if how == "open to others":
+        path.mkdir()
+        path.chmod(0o755)
+        return "a directory", me, "0755"
+    if how == "open to the group":
+        path.mkdir()
+        path.chmod(0o710)
+        return "a directory", me, "0710"
+    if how == "owned by another user":
+        uid, gid = _nobody()
+        path.mkdir(mode=0o700)
+        os.chown(path, uid, gid)
+        return "a directory", uid, "0700"
+    if how == "a symbolic link":
+        (path.parent / "elsewhere").mkdir(mode=0o700)
+        path.symlink_to(path.parent / "elsewhere")
+        return "a symbolic link", me, "0777"
+    path.write_text("")
+    path.chmod(0o600)
+    return "a file", me, "0600"
+
+
+@pytest.mark.parametrize(
+    "how",
+    ["open to others", "open to the group", "owned by another user", "a symbolic link", "a file"],
+)
+def test_an_unsafe_directory_is_refused_with_what_was_found_and_expected(
+    runtime_base, tmp_path, monkeypatch, capsys, how
+):
+    path = runtime_base / "bsrbench"
+    kind, uid, mode = _unsafe(path, how)
+    message = (
+        f"unsafe job server directory {path}: {kind} owned by uid {uid} with mode {mode}; expected a directory "
+        f"owned by uid {os.geteuid()} (this user) with mode 0700 (no access for group or others)"
+    )
+    with pytest.raises(jobserver.UnsafeDirectory, match=f"^{re.escape(message)}$"):
+        jobserver.socket_path()
+    # a job runs in-process, with that line; the run's end (Snakefile's handlers) stops nothing and raises nothing
+    monkeypatch.setattr(sys, "stderr", sys.stderr)  # run_local points stderr at the job's log
+    jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))
+    assert int((tmp_path / "out.txt").read_text()) == os.getpid()
+    assert jobserver.shutdown() is False
+    err = capsys.readouterr().err
+    assert f"bsrbench.jobserver: {message}; running in-process" in err.splitlines(), err
+    assert list(path.parent.glob("**/*.sock")) == []  # nothing was put in the unsafe place

@@ -155,18 +155,19 @@ def runtime_dir():
         path = Path(os.environ.get("TMPDIR") or "/tmp") / f"bsrbench-{uid}"
     try:
         os.mkdir(path, 0o700)  # the umask can only remove bits of 0700 ...
-        os.chmod(path, 0o700)  # ... so restore the owner's, which a umask such as 0o777 would leave out
+        os.chmod(
+            path, 0o700
+        )  # ... so restore the owner's, which a umask such as 0o777 would leave out
     except FileExistsError:
         pass
     st = os.lstat(path)  # whatever was there before: check it, do not follow it
     if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid or st.st_mode & 0o077:
-        kind = (
-            "a directory"
-            if stat.S_ISDIR(st.st_mode)
-            else "a symbolic link"
-            if stat.S_ISLNK(st.st_mode)
-            else "not a directory"
-        )
+        kinds = {
+            stat.S_ISDIR: "a directory",
+            stat.S_ISLNK: "a symbolic link",
+            stat.S_ISREG: "a file",
+        }
+        kind = next((k for test, k in kinds.items() if test(st.st_mode)), "not a directory")
         raise UnsafeDirectory(
             f"unsafe job server directory {path}: {kind} owned by uid {st.st_uid} with mode "
             f"{stat.S_IMODE(st.st_mode):04o}; expected a directory owned by uid {uid} (this user) with mode "
@@ -454,7 +455,8 @@ def shutdown(path=None, timeout=30.0):
             time.sleep(0.05)
         return True
     except Exception as exc:
-        print(f"bsrbench.jobserver: could not stop the server at {path}: {exc}", file=sys.stderr)
+        where = f" at {path}" if path else ""
+        print(f"bsrbench.jobserver: could not stop the server{where}: {exc}", file=sys.stderr)
         return False
 
 
@@ -714,7 +716,9 @@ def serve(path, idle=IDLE_SECONDS, preload=()):
                 )
                 continue
             try:
-                conn.settimeout(10.0)  # a client that connects and sends nothing must not stall the server
+                conn.settimeout(
+                    10.0
+                )  # a client that connects and sends nothing must not stall the server
                 request = _check_request(_recv(conn))
                 conn.settimeout(None)
             except (EOFError, OSError):
