@@ -532,7 +532,8 @@ for data in (b"", request):
     s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     s.connect(path)
     try:
-        s.sendall(data)
+        if data:
+            s.sendall(data)
         print(repr(s.recv(1 << 16)))
     except OSError as exc:
         print(type(exc).__name__)

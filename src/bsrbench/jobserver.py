@@ -154,10 +154,9 @@ def runtime_dir():
     else:
         path = Path(os.environ.get("TMPDIR") or "/tmp") / f"bsrbench-{uid}"
     try:
-        os.mkdir(path, 0o700)  # the umask can only remove bits of 0700 ...
-        os.chmod(
-            path, 0o700
-        )  # ... so restore the owner's, which a umask such as 0o777 would leave out
+        # the umask can only remove bits of 0700; chmod restores the owner's, which a umask of 0o777 would remove
+        os.mkdir(path, 0o700)
+        os.chmod(path, 0o700)
     except FileExistsError:
         pass
     st = os.lstat(path)  # whatever was there before: check it, do not follow it
