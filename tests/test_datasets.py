@@ -301,3 +301,84 @@ def test_download_that_does_not_parse_leaves_nothing(tmp_path):
     assert sorted(p.name for p in dest.iterdir()) == ["01.asf", "01.asf.sha256"]
     with pytest.raises(DataFileError, match=r"download from file://.*/02/02_01\.amc failed"):
         download_cmu_trial(2, 1, dest / "02_01.amc", dest / "01.asf", base_url=base)
+
+
+# ------------------------------------------------------------------------------------ navigate (CMU 09_12, AMC)
+
+
+def _datasets():
+    """config/datasets.yaml as the workflow reads it (defaults filled in, paths resolved)."""
+    import yaml
+
+    from bsrbench.config import load_datasets
+
+    return load_datasets(yaml.safe_load((ROOT / "config" / "datasets.yaml").read_text()))
+
+
+def _amc_frame_numbers(path):
+    """The frame-number lines of an AMC file (a line holding one whole number), counted from the text."""
+    return [int(t) for t in path.read_text().split("\n") if t.strip().isdigit()]
+
+
+def test_navigate_entry_loads_at_30_fps_from_the_vendored_amc(tmp_path):
+    """The entry reads 09_12.amc with subject 9's ASF, verified against resources/cmu-mocap/SHA256SUMS; at one
+    frame in 4 of the 1918 frames (numbered 1..1918 in the file) it keeps file frames 0, 4, ..., 1916."""
+    data = _datasets()
+    d = data.dataset("mocap", "navigate")
+    assert d["paper_activity"] == "Navigate" and d["format"] == "amc" and d["enabled"]
+    assert d["files"] == ["resources/cmu-mocap/09_12.amc"]
+    assert d["asf"] == "resources/cmu-mocap/09.asf"
+    numbers = _amc_frame_numbers(CMU / "09_12.amc")
+    assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) == 1918
+    params = data.motion_params("mocap", "navigate")
+    out = tmp_path / "navigate.npz"
+    sel = prepare_motion(
+        [ROOT / f for f in d["files"]],
+        out,
+        asf=ROOT / d["asf"],
+        **{**params, "checksums": ROOT / d["checksums"]},
+    )
+    expect = np.arange(0, len(numbers), 4)
+    assert sel.n_frames == len(expect) == -(-len(numbers) // 4) == 480
+    np.testing.assert_array_equal(sel.trial_frames, expect)
+    with np.load(out) as z:
+        assert list(z["trial_ids"]) == ["09_12"] and str(z["skeleton_kind"]) == "asf"
+        assert z["angles"].shape == (480, 57)
+        assert str(z["angle_names"][int(z["heading_column"])]) == "root_Yrotation"
+        assert list(z["sha256"]) == [sha256_file(CMU / "09_12.amc")]
+
+
+def test_navigate_files_are_checked_against_their_digests(tmp_path):
+    """The listed digests are the files' own, and a changed byte in either file is refused by name."""
+    table = {Path(p).name: h for p, h in read_checksums(CMU / "SHA256SUMS").items()}
+    for name in ("09_12.amc", "09.asf"):
+        assert table[name] == sha256_file(CMU / name)
+        bad = tmp_path / name
+        data = bytearray((CMU / name).read_bytes())
+        data[-3] = ord("7") if data[-3] != ord("7") else ord("8")
+        bad.write_bytes(bytes(data))
+        (tmp_path / "SHA256SUMS").write_text(f"{table[name]}  {name}\n")
+        with pytest.raises(DataFileError, match=rf"{name}: checksum mismatch"):
+            verify_checksum(bad, tmp_path / "SHA256SUMS")
+
+
+def test_navigate_is_the_trial_in_the_authors_x09_rows():
+    """The vendored file is the trial the authors used: rows 398-699 of their x09.mat are 09_12 at one frame in 4
+    (AMC frames 3, 7, 11, ...: their BVH conversion adds a rest frame, so its frames 4, 8, ...). Their root
+    heading (third angle, Z X Y Euler order) matches the heading of our root rotation written in that order to
+    a median of under a degree while the figure turns round (shifted by 4 rows, 16 frames, it does not)."""
+    from scipy.spatial.transform import Rotation
+
+    from bsrbench.mocap.asf import parse_amc, parse_asf
+
+    amc = parse_amc(CMU / "09_12.amc", parse_asf(CMU / "09.asf"))
+    assert amc.motion.shape == (1918, 62) and amc.asf.root_order[3:] == ("RX", "RY", "RZ")
+    rx_ry_rz = amc.motion[3::4, 3:6][:302]
+    # AMC root RX RY RZ applies x first: R = Rz Ry Rx; the authors' order Z X Y is R = Rz Rx Ry.
+    ours = Rotation.from_euler("ZYX", rx_ry_rz[:, ::-1], degrees=True).as_euler("ZXY", degrees=True)
+    theirs = scipy.io.loadmat(FEAT / "x09.mat")["Y"][398:700, 3:6]
+    diff = (theirs[:, 2] - ours[:, 2] + 180.0) % 360.0 - 180.0
+    assert np.median(np.abs(diff)) < 1.0
+    shifted = (theirs[4:, 2] - ours[:-4, 2] + 180.0) % 360.0 - 180.0
+    assert np.median(np.abs(shifted)) > 2.0
+    assert np.ptp(np.unwrap(np.deg2rad(theirs[:, 2]))) > np.pi  # the figure turns round
