@@ -471,7 +471,7 @@ _PRED_BLOCK = 32
 
 
 @njit(cache=True)
-def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
+def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng, keep_residual=True):
     """Joint (b_ki, s_ki) block update for every data point i and atom k, i outer, k inner (docs/model.md,
     section "Codes: the (b, s) block update").
 
@@ -488,6 +488,8 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     within the block by the block's Gram matrix (:func:`_code_block`), and the residual is updated once per
     block, ``R += Delta^T D_blk`` (Delta = alpha_old - alpha_new). O(N K M) per sweep, as matrix products.
     Shapes: R (N, M), D (K, M), norms (K,), B (N, K) int8, S, W (N, K); all updated in place but D, W.
+    Without ``keep_residual`` R is left stale after the last block (for a caller that recomputes it, as the block
+    atom update does): one block's product less.
     """
     N, K = B.shape
     tau = np.empty(K)
@@ -519,19 +521,21 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         _code_block(
             Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
         )
-        R += Dt[:nb].T @ Db
+        if keep_residual or k1 < K:
+            R += Dt[:nb].T @ Db
     _store_codes_from_t(Bt, St, B, S)
 
 
 @njit(cache=True)
-def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
+def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng, keep_residual=True):
     """The (b, s) block update with separate noise precisions g_nx (feature rows) and g_ny (output rows).
 
     Then ``tau = g_s + g_nx ||d^x_k||^2 + g_ny ||d^y_k||^2`` and
     ``mu = (g_nx d^x_k . r^x_i^(-k) + g_ny d^y_k . r^y_i^(-k)) / tau``; the logit and the draws have the form of
     :func:`update_codes`. Both depend on D and R only through these weighted inner products, so the update is
     :func:`update_codes` with g_xy = 1 on copies of D and R whose feature columns are scaled by sqrt(g_nx) and
-    output columns by sqrt(g_ny) (same draws, same order); R is scaled back in place afterwards.
+    output columns by sqrt(g_ny) (same draws, same order); R is scaled back in place afterwards
+    (``keep_residual`` as in :func:`update_codes`: without it R is left stale).
     """
     K, M = D.shape
     N = R.shape[0]
@@ -547,7 +551,9 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
             R[i, m] *= scale[m]
     norms_s = np.empty(K)
     _row_norms(Ds, norms_s)
-    update_codes(R, Ds, norms_s, B, S, W, g_s, 1.0, rng)
+    update_codes(R, Ds, norms_s, B, S, W, g_s, 1.0, rng, keep_residual)
+    if not keep_residual:
+        return
     for i in range(N):
         for m in range(M):
             R[i, m] /= scale[m]
@@ -578,8 +584,8 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     - when it needs fewer flops (N well below K, :func:`_small_form_cheaper`): the N x N (Woodbury) form of Bhattacharya, Chakraborty & Mallick (Biometrika 103(4), 2016,
       Algorithm 1) with ``Phi = sqrt(g_xy) A^T``: ``u = E1 / sqrt(g_x)``, ``v = Phi u + E2``,
       ``w = (Phi Phi^T / g_x + I_N)^-1 (sqrt(g_xy) X^T - v)``, ``D^x^T = u + Phi^T w / g_x`` (one N x N
-      Cholesky per dictionary). The residual follows from the same products, ``X^T - A^T u - sqrt(g_xy) A^T A w
-      / g_x``. Draw order: a (K, M) array E1, then an (N, M) array E2 of standard normals.
+      Cholesky per dictionary). The residual needs no further product: ``X^T - A D^x^T = (E2 + w) / sqrt(g_xy)``
+      (code layout). Draw order: a (K, M) array E1, then an (N, M) array E2 of standard normals.
 
     With separate noise precisions, ``g_xy`` is the feature rows' g_nx and ``g_ny`` (>= 0) the output rows' (it
     replaces g_xy in D^y's precision and mean); the default ``g_ny = -1`` means one shared g_xy.
@@ -590,18 +596,17 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     M = D.shape[1]
     A = _codes_from(B, S)
     bg = rng.bit_generator
-    E = np.empty((K, M))
-    _randn_fill(bg, E)
     if _small_form_cheaper(N, K, M):
+        U = np.empty((K, M))  # E1, then u = E1 / sqrt(g) in place, both dictionaries side by side
+        _randn_fill(bg, U)
         E2 = np.empty((N, M))
         _randn_fill(bg, E2)
         H = np.empty((N, N))
         _syrk_gram(A, H, False)  # A A^T (code layout: A is N x K)
-        U = np.empty((K, M))  # u = E1 / sqrt(g), both dictionaries side by side
         sx, sy = 1.0 / np.sqrt(g_x), 1.0 / np.sqrt(g_y)
         for k in range(K):
             for m in range(M):
-                U[k, m] = E[k, m] * (sx if m < Mx else sy)
+                U[k, m] *= sx if m < Mx else sy
         Au = A @ U
         Wr = np.empty((N, M))
         for part in range(2):
@@ -622,20 +627,22 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
                     Wp[i, m] = c * (V[i, lo + m] - Au[i, m + lo]) - E2[i, lo + m]
             _tri_solve(Mm, Wp, False)
             _tri_solve(Mm, Wp, True)
-            f = c / g  # D^T = u + Phi^T w / g = u + (c / g) A^T w
+            # D^T = u + Phi^T w / g = u + (c / g) A^T w. The residual needs no product with H: with
+            # rhs = c (X^T - A u) - E2 and Mm w = rhs, H w = (g / gn)(rhs - w), so
+            # X^T - A D^T = X^T - A u - (c / g) H w = (E2 + w) / c.
+            f = c / g
             for i in range(N):
                 for m in range(hi - lo):
                     Wr[i, lo + m] = f * Wp[i, m]
+                    R[i, lo + m] = (E2[i, lo + m] + Wp[i, m]) / c
         Dp = A.T @ Wr
-        Hw = H @ Wr
         for k in range(K):
             for m in range(M):
                 D[k, m] = U[k, m] + Dp[k, m]
-        for i in range(N):
-            for m in range(M):
-                R[i, m] = V[i, m] - Au[i, m] - Hw[i, m]
         _row_norms(D, norms)
         return
+    E = np.empty((K, M))
+    _randn_fill(bg, E)
     G = np.empty((K, K))
     _syrk_gram(A, G, True)
     AV = A.T @ V
@@ -721,6 +728,16 @@ def _sum_sq(a):
     return acc
 
 
+@njit(cache=True, fastmath=_VEC)
+def _sum_sq_cols(X, lo, hi):
+    """sum of X[:, lo:hi]^2 for a C-contiguous 2-D X (vectorized along the rows' columns)."""
+    acc = 0.0
+    for r in range(X.shape[0]):
+        for m in range(lo, hi):
+            acc += X[r, m] * X[r, m]
+    return acc
+
+
 @njit(cache=True)
 def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, separate=False):
     """Gamma conditionals of the precisions (shape/rate), drawn in the order g_s, noise, g_x, g_y.
@@ -743,22 +760,12 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, sepa
     M = D.shape[1]
     My = M - Mx
     ss = _sum_sq(S)
-    dx = 0.0
-    dy = 0.0
-    for k in range(K):
-        for m in range(Mx):
-            dx += D[k, m] * D[k, m]
-        for m in range(Mx, M):
-            dy += D[k, m] * D[k, m]
+    dx = _sum_sq_cols(D, 0, Mx)
+    dy = _sum_sq_cols(D, Mx, M)
     prec[0] = rng.gamma(a0 + 0.5 * N * K, 1.0 / (b0 + 0.5 * ss))
     if separate:
-        rx = 0.0
-        ry = 0.0
-        for i in range(N):
-            for m in range(Mx):
-                rx += R[i, m] * R[i, m]
-            for m in range(Mx, M):
-                ry += R[i, m] * R[i, m]
+        rx = _sum_sq_cols(R, 0, Mx)
+        ry = _sum_sq_cols(R, Mx, M)
         prec[4] = rng.gamma(a_xy + 0.5 * N * Mx, 1.0 / (b_xy + 0.5 * rx))
         if My > 0:
             prec[5] = rng.gamma(a_xy + 0.5 * N * My, 1.0 / (b_xy + 0.5 * ry))
@@ -1071,11 +1078,12 @@ def _sweep(
 ):
     """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
     ``stats = [log-likelihood, number of active atoms, fraction of moved logit vectors]`` (MH: accepted)."""
+    keep = atom_code == 1  # the block atom update recomputes the residual; the single-site one reads it
     if separate:
-        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng)
+        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng, keep)
         g_nx, g_ny = prec[4], prec[5]
     else:
-        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng, keep)
         g_nx, g_ny = prec[1], prec[1]
     if atom_code == 1:
         update_atoms_single(R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
