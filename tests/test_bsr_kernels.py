@@ -319,6 +319,9 @@ def test_blas_wrappers_match_numpy():
     F = E.copy()
     kern._times_lower_t(F, L)
     np.testing.assert_allclose(F, E @ L.T, rtol=1e-12, atol=1e-12)
+    F = E.copy()
+    kern._times_lower(F, L)
+    np.testing.assert_allclose(F, E @ L, rtol=1e-12, atol=1e-12)
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
         kern._cholesky_lower(-np.eye(3))
     with pytest.raises(ValueError, match="C-contiguous"):

@@ -272,7 +272,26 @@ def _times_lower_t(Z, L):
     m, n = Z.shape
     if m == 0 or n == 0:
         return
-    ch = _chars("L", "U", "T", "N")
+    _trmm_lower(Z, L, True)
+
+
+@njit(cache=True)
+def _times_lower(Z, L):
+    """In place: Z (m, n) becomes Z L for a lower-triangular L (n, n), both C-contiguous (dtrmm)."""
+    _need_c(Z)
+    _need_c(L)
+    m, n = Z.shape
+    if m == 0 or n == 0:
+        return
+    _trmm_lower(Z, L, False)
+
+
+@njit(cache=True)
+def _trmm_lower(Z, L, transpose):
+    """Z L^T (``transpose``) or Z L in place, by dtrmm on the transposed views (L Z^T or L^T Z^T from the
+    left: Fortran sees the row-major lower L as an upper-triangular matrix)."""
+    m, n = Z.shape
+    ch = _chars("L", "U", "T" if transpose else "N", "N")
     ints = np.array([n, m, n, n], dtype=np.int32)
     sc = np.array([1.0])
     _dtrmm(
@@ -786,12 +805,14 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, sepa
 def _signs_t(B):
     """z = 2 b - 1, transposed to (K, N) so that atom k's vector is a contiguous row."""
     N, K = B.shape
-    Z = np.empty((N, K))
-    for i in range(N):
-        for k in range(K):
-            Z[i, k] = 1.0 if B[i, k] else -1.0
     Zt = np.empty((K, N))
-    _transpose_into(Z, Zt)
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for k in range(k0, k1):
+                for i in range(i0, i1):
+                    Zt[k, i] = 2.0 * B[i, k] - 1.0  # branch-free: b is 0 or 1
     return Zt
 
 
@@ -935,7 +956,14 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     Lamp = np.empty((K, N))
     Sigp = np.empty((K, N))
     _bound_terms(Zt, Wp, Lamp, Sigp, ratio == MH_LITERAL)
-    Mup = Lamp @ Sigma if exact else Mu
+    # Lambda' . mu' = Lambda'^T Sigma Lambda' = ||Lw^T Lambda'||^2: a triangular product (half the flops of
+    # Lamp @ Sigma); mu' itself is not needed
+    quadp = np.empty(K)
+    if exact:
+        LamL = Lamp.copy()
+        _times_lower(LamL, Lw)  # row k: (Lw^T Lambda'_k)^T
+        for k in range(K):
+            quadp[k] = _dot_rows(LamL, k, LamL, k, N)
     U = np.empty(K)
     for k in range(K):
         U[k] = _rand(rng.bit_generator)
@@ -960,11 +988,13 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
                 lr += (
                     (Wt[k, i] - w_mean) * Lamp[k, i]
                     - (Wp[k, i] - w_mean) * Lam[k, i]
-                    + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i])
+                    + 0.5 * Lam[k, i] * Mu[k, i]
                 )
             else:
                 lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
         lr += np.log(prod)
+        if exact:
+            lr -= 0.5 * quadp[k]
         if np.log(U[k]) < lr:
             accepted += 1
             for i in range(N):
