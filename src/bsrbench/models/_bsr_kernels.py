@@ -581,11 +581,11 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng, keep_residual
 @njit(cache=True)
 def _small_form_cheaper(N, K, M):
     """Whether the N x N form of the block atom draw needs fewer flops than the K x K form (N < K by enough):
-    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, solves and residual) against
+    ``N^2 K + 2 N^3 / 3 + 2 N^2 M`` (syrk, two Cholesky, solves; the residual comes from the solves) against
     ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both."""
     n, k, m = float(N), float(K), float(M)
     return (
-        n * n * k + 2.0 * n**3 / 3.0 + 4.0 * n * n * m
+        n * n * k + 2.0 * n**3 / 3.0 + 2.0 * n * n * m
         < n * k * k + 2.0 * k**3 / 3.0 + 2.0 * k * k * m
     )
 
@@ -1108,7 +1108,9 @@ def _sweep(
 ):
     """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
     ``stats = [log-likelihood, number of active atoms, fraction of moved logit vectors]`` (MH: accepted)."""
-    keep = atom_code == 1  # the block atom update recomputes the residual; the single-site one reads it
+    keep = (
+        atom_code == 1
+    )  # the block atom update recomputes the residual; the single-site one reads it
     if separate:
         update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng, keep)
         g_nx, g_ny = prec[4], prec[5]
