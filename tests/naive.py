@@ -81,7 +81,7 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=None):
     E = rng.standard_normal((K, M))
     N = A.shape[1]
     if (
-        N * N * K + 2 * N**3 / 3 + 2 * N * N * M < N * K * K + 2 * K**3 / 3 + 2 * K * K * M
+        N * N * K + 2 * N**3 / 3 + 4 * N * N * M < N * K * K + 2 * K**3 / 3 + 2 * K * K * M
     ):  # N x N form
         E2 = rng.standard_normal((N, M))
         for lo, hi, g, gn in ((0, Mx, g_x, g_xy), (Mx, M, g_y, g_ny)):

@@ -581,11 +581,14 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng, keep_residual
 @njit(cache=True)
 def _small_form_cheaper(N, K, M):
     """Whether the N x N form of the block atom draw needs fewer flops than the K x K form (N < K by enough):
-    ``N^2 K + 2 N^3 / 3 + 2 N^2 M`` (syrk, two Cholesky, solves; the residual comes from the solves) against
-    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both."""
+    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, the solves' 2 N^2 M counted twice) against
+    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both. The solves weigh
+    double: with their true count (the residual now comes from them) the N x N form would also be chosen at
+    N = 30, K = 32 / 60, 64 / 100, 128, where it measured 0.93-1.02x the K x K form (bench_bsr_ab.py), and
+    those cells' chains would change."""
     n, k, m = float(N), float(K), float(M)
     return (
-        n * n * k + 2.0 * n**3 / 3.0 + 2.0 * n * n * m
+        n * n * k + 2.0 * n**3 / 3.0 + 4.0 * n * n * m
         < n * k * k + 2.0 * k**3 / 3.0 + 2.0 * k * k * m
     )
 
