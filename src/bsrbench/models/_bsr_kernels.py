@@ -939,7 +939,8 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     ratio ``sum_i [...] - Lambda . (w' - w)`` with the tight lambda; MH_LITERAL, the printed ratio and
     lambda_i = sigmoid(+z_i w_i) exactly as the appendix prints it. All K atoms are batched as matrix products
     (Sigma is symmetric, so atom-major (K, N) arrays are multiplied from the right). Draw order: a (K, N) array
-    of standard normals (row k for atom k), then K uniforms. Returns the number of accepted atoms.
+    of standard normals (row k for atom k), then K uniforms. Returns the number of accepted atoms. ``Lw`` must be
+    the Cholesky factor of ``Sigma`` (the proposal's noise and the ratio's quadratic terms use it).
     """
     N, K = W.shape
     exact = ratio == MH_EXACT
