@@ -253,9 +253,9 @@ def main(argv=None):
             ),
             *(
                 (
-                    1.0 * N * N * K + 4.0 * N * K * M + 2.0 * N**3 / 3 + 4.0 * N * N * M,
+                    1.0 * N * N * K + 4.0 * N * K * M + 2.0 * N**3 / 3 + 2.0 * N * N * M,
                     "N x N form: N^2 K (syrk A A^T) + 4NKM (A u, A^T w) + 2 N^3/3 (two "
-                    "Cholesky) + 4 N^2 M (solves, residual H w)",
+                    "Cholesky) + 2 N^2 M (solves; the residual from them)",
                     (N, K, M),
                 )
                 if kern._small_form_cheaper(N, K, M)

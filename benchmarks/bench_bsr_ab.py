@@ -7,9 +7,13 @@ process, alternating batch by batch (10 sweeps per batch, 15 batches each, media
 time per sweep), each on its own copy of the same starting state (a state after 2 sweeps, as in bench_bsr.py) and
 its own Generator with the same seed, so load and drift hit both alike.
 
-The old revision's package is extracted with ``git archive <rev> src/bsrbench`` into a temporary folder and
-imported under another name, so both numba kernels live side by side (their caches are keyed by file path).
+The old revision's package is extracted with ``git archive <rev> src/bsrbench`` into a temporary folder (or, if
+``rev`` is a folder such as another checkout's ``src``, its ``bsrbench`` package is copied there) and imported
+under another name, so both numba kernels live side by side (their caches are keyed by file path). As in
+``BayesianSR.fit``, glibc keeps freed memory (``keep_freed_memory``), for both kernels alike.
 Run from the repository root:
+    .venv/bin/python benchmarks/bench_bsr_ab.py main --table --sizes 60x128 200x256   # against main's kernels
+    .venv/bin/python benchmarks/bench_bsr_ab.py /work/main/src --table    # another checkout's working tree
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1        # the commit before issue 12's blocked code update
     .venv/bin/python benchmarks/bench_bsr_ab.py b54c7e1 --sizes 30x64 200x256 --w-update ess --atom-update block
     .venv/bin/python benchmarks/bench_bsr_ab.py ef1133b --table   # default, single-site and MH in one table
@@ -23,6 +27,7 @@ for _var in ("NUMBA_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MK
 
 import argparse
 import importlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -43,8 +48,21 @@ VARIANT_SIZES = ("30x64", "60x128", "200x256")
 
 
 def old_kernels(rev, workdir):
-    """The ``_bsr_kernels`` module of git revision ``rev``, imported as ``bsrbench_<rev>.models._bsr_kernels``."""
+    """The ``_bsr_kernels`` module of git revision ``rev`` (or of the package ``rev/bsrbench`` if ``rev`` is a
+    folder), imported as ``bsrbench_<rev>.models._bsr_kernels``."""
     name = "bsrbench_" + "".join(c if c.isalnum() else "_" for c in rev)
+    if Path(rev).is_dir():
+        if not (Path(rev) / "bsrbench" / "models" / "_bsr_kernels.py").is_file():
+            raise SystemExit(
+                f"{rev}: expected a folder holding bsrbench/models/_bsr_kernels.py (a src folder)"
+            )
+        shutil.copytree(
+            Path(rev) / "bsrbench",
+            Path(workdir) / name,
+            ignore=shutil.ignore_patterns("__pycache__"),
+        )
+        sys.path.insert(0, workdir)
+        return importlib.import_module(f"{name}.models._bsr_kernels")
     archive = subprocess.run(
         ["git", "-C", str(ROOT), "archive", rev, "src/bsrbench"], capture_output=True
     )
@@ -131,7 +149,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("rev", help="the older git revision (e.g. a commit before a kernel change)")
+    ap.add_argument(
+        "rev",
+        help="the older git revision (e.g. main, or a commit before a kernel change), or a src folder",
+    )
     ap.add_argument(
         "--sizes",
         nargs="+",
@@ -177,6 +198,7 @@ def main(argv=None):
         help="time each update alone (codes, atoms, logits) at the first of --sizes instead of sweeps",
     )
     args = ap.parse_args(argv)
+    new.keep_freed_memory()
     if args.parts:
         with tempfile.TemporaryDirectory() as tmp:
             parts_table(old_kernels(args.rev, tmp), args)

@@ -78,6 +78,38 @@ def test_codes_blocked_over_atoms_match_naive(K):
     np.testing.assert_allclose(s1.R, data.V - (s1.B * s1.S) @ s1.D, atol=1e-10)
 
 
+@pytest.mark.parametrize("separate", [False, True])
+def test_codes_without_residual_draw_the_same_codes(separate):
+    """keep_residual=False (the sweep with block atoms, which recompute R): the same codes from the same draws;
+    R is left as it was before the last block (over two blocks: after the first block's update)."""
+    K = kern._CODE_BLOCK + 6
+    s1, data, _ = _problem(9, N=13, K=K, Mx=6, My=3)
+    s2, s0 = _copy(s1), _copy(s1)
+    p = s1.prec
+    if separate:
+        args = (p[0], 0.7 * p[1], 1.9 * p[1], data.Mx)
+        kern.update_codes_separate(s1.R, s1.D, s1.B, s1.S, s1.W, *args, np.random.default_rng(3))
+        kern.update_codes_separate(
+            s2.R, s2.D, s2.B, s2.S, s2.W, *args, np.random.default_rng(3), False
+        )
+    else:
+        kern.update_codes(
+            s1.R, s1.D, s1.norms, s1.B, s1.S, s1.W, p[0], p[1], np.random.default_rng(3)
+        )
+        kern.update_codes(
+            s2.R, s2.D, s2.norms, s2.B, s2.S, s2.W, p[0], p[1], np.random.default_rng(3), False
+        )
+    np.testing.assert_array_equal(s1.B, s2.B)
+    np.testing.assert_array_equal(s1.S, s2.S)
+    if (
+        not separate
+    ):  # the stale R: the residual of the new codes of the first block, the old ones after it
+        blk = kern._CODE_BLOCK
+        A = s1.B * s1.S
+        A[:, blk:] = (s0.B * s0.S)[:, blk:]
+        np.testing.assert_allclose(s2.R, data.V - A @ s1.D, atol=1e-10)
+
+
 @pytest.mark.parametrize("N, K", [(7, 5), (4, 9)])  # the K x K form and the N x N (Woodbury) form
 @pytest.mark.parametrize("My", [3, 0])
 def test_atoms_match_naive(My, N, K):
@@ -319,6 +351,9 @@ def test_blas_wrappers_match_numpy():
     F = E.copy()
     kern._times_lower_t(F, L)
     np.testing.assert_allclose(F, E @ L.T, rtol=1e-12, atol=1e-12)
+    F = E.copy()
+    kern._times_lower(F, L)
+    np.testing.assert_allclose(F, E @ L, rtol=1e-12, atol=1e-12)
     with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
         kern._cholesky_lower(-np.eye(3))
     with pytest.raises(ValueError, match="C-contiguous"):

@@ -272,7 +272,26 @@ def _times_lower_t(Z, L):
     m, n = Z.shape
     if m == 0 or n == 0:
         return
-    ch = _chars("L", "U", "T", "N")
+    _trmm_lower(Z, L, True)
+
+
+@njit(cache=True)
+def _times_lower(Z, L):
+    """In place: Z (m, n) becomes Z L for a lower-triangular L (n, n), both C-contiguous (dtrmm)."""
+    _need_c(Z)
+    _need_c(L)
+    m, n = Z.shape
+    if m == 0 or n == 0:
+        return
+    _trmm_lower(Z, L, False)
+
+
+@njit(cache=True)
+def _trmm_lower(Z, L, transpose):
+    """Z L^T (``transpose``) or Z L in place, by dtrmm on the transposed views (L Z^T or L^T Z^T from the
+    left: Fortran sees the row-major lower L as an upper-triangular matrix)."""
+    m, n = Z.shape
+    ch = _chars("L", "U", "T" if transpose else "N", "N")
     ints = np.array([n, m, n, n], dtype=np.int32)
     sc = np.array([1.0])
     _dtrmm(
@@ -471,7 +490,7 @@ _PRED_BLOCK = 32
 
 
 @njit(cache=True)
-def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
+def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng, keep_residual=True):
     """Joint (b_ki, s_ki) block update for every data point i and atom k, i outer, k inner (docs/model.md,
     section "Codes: the (b, s) block update").
 
@@ -488,6 +507,8 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
     within the block by the block's Gram matrix (:func:`_code_block`), and the residual is updated once per
     block, ``R += Delta^T D_blk`` (Delta = alpha_old - alpha_new). O(N K M) per sweep, as matrix products.
     Shapes: R (N, M), D (K, M), norms (K,), B (N, K) int8, S, W (N, K); all updated in place but D, W.
+    Without ``keep_residual`` R is left stale after the last block (for a caller that recomputes it, as the block
+    atom update does): one block's product less.
     """
     N, K = B.shape
     tau = np.empty(K)
@@ -519,19 +540,21 @@ def update_codes(R, D, norms, B, S, W, g_s, g_xy, rng):
         _code_block(
             Ct, Gb, At, Bt, St, Ut, Zt, Wt, Dt, k0, nb, tau, half_log, sd_on, sd_off, g_xy, norms
         )
-        R += Dt[:nb].T @ Db
+        if keep_residual or k1 < K:
+            R += Dt[:nb].T @ Db
     _store_codes_from_t(Bt, St, B, S)
 
 
 @njit(cache=True)
-def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
+def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng, keep_residual=True):
     """The (b, s) block update with separate noise precisions g_nx (feature rows) and g_ny (output rows).
 
     Then ``tau = g_s + g_nx ||d^x_k||^2 + g_ny ||d^y_k||^2`` and
     ``mu = (g_nx d^x_k . r^x_i^(-k) + g_ny d^y_k . r^y_i^(-k)) / tau``; the logit and the draws have the form of
     :func:`update_codes`. Both depend on D and R only through these weighted inner products, so the update is
     :func:`update_codes` with g_xy = 1 on copies of D and R whose feature columns are scaled by sqrt(g_nx) and
-    output columns by sqrt(g_ny) (same draws, same order); R is scaled back in place afterwards.
+    output columns by sqrt(g_ny) (same draws, same order); R is scaled back in place afterwards
+    (``keep_residual`` as in :func:`update_codes`: without it R is left stale).
     """
     K, M = D.shape
     N = R.shape[0]
@@ -547,7 +570,9 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
             R[i, m] *= scale[m]
     norms_s = np.empty(K)
     _row_norms(Ds, norms_s)
-    update_codes(R, Ds, norms_s, B, S, W, g_s, 1.0, rng)
+    update_codes(R, Ds, norms_s, B, S, W, g_s, 1.0, rng, keep_residual)
+    if not keep_residual:
+        return
     for i in range(N):
         for m in range(M):
             R[i, m] /= scale[m]
@@ -556,8 +581,11 @@ def update_codes_separate(R, D, B, S, W, g_s, g_nx, g_ny, Mx, rng):
 @njit(cache=True)
 def _small_form_cheaper(N, K, M):
     """Whether the N x N form of the block atom draw needs fewer flops than the K x K form (N < K by enough):
-    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, solves and residual) against
-    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both."""
+    ``N^2 K + 2 N^3 / 3 + 4 N^2 M`` (syrk, two Cholesky, the solves' 2 N^2 M counted twice) against
+    ``N K^2 + 2 K^3 / 3 + 2 K^2 M``; the 4 N K M of the other products is common to both. The solves weigh
+    double: with their true count (the residual now comes from them) the N x N form would also be chosen at
+    N = 30, K = 32 / 60, 64 / 100, 128, where it measured 0.93-1.02x the K x K form (bench_bsr_ab.py), and
+    those cells' chains would change."""
     n, k, m = float(N), float(K), float(M)
     return (
         n * n * k + 2.0 * n**3 / 3.0 + 4.0 * n * n * m
@@ -578,8 +606,8 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     - when it needs fewer flops (N well below K, :func:`_small_form_cheaper`): the N x N (Woodbury) form of Bhattacharya, Chakraborty & Mallick (Biometrika 103(4), 2016,
       Algorithm 1) with ``Phi = sqrt(g_xy) A^T``: ``u = E1 / sqrt(g_x)``, ``v = Phi u + E2``,
       ``w = (Phi Phi^T / g_x + I_N)^-1 (sqrt(g_xy) X^T - v)``, ``D^x^T = u + Phi^T w / g_x`` (one N x N
-      Cholesky per dictionary). The residual follows from the same products, ``X^T - A^T u - sqrt(g_xy) A^T A w
-      / g_x``. Draw order: a (K, M) array E1, then an (N, M) array E2 of standard normals.
+      Cholesky per dictionary). The residual needs no further product: ``X^T - A D^x^T = (E2 + w) / sqrt(g_xy)``
+      (code layout). Draw order: a (K, M) array E1, then an (N, M) array E2 of standard normals.
 
     With separate noise precisions, ``g_xy`` is the feature rows' g_nx and ``g_ny`` (>= 0) the output rows' (it
     replaces g_xy in D^y's precision and mean); the default ``g_ny = -1`` means one shared g_xy.
@@ -590,18 +618,17 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
     M = D.shape[1]
     A = _codes_from(B, S)
     bg = rng.bit_generator
-    E = np.empty((K, M))
-    _randn_fill(bg, E)
     if _small_form_cheaper(N, K, M):
+        U = np.empty((K, M))  # E1, then u = E1 / sqrt(g) in place, both dictionaries side by side
+        _randn_fill(bg, U)
         E2 = np.empty((N, M))
         _randn_fill(bg, E2)
         H = np.empty((N, N))
         _syrk_gram(A, H, False)  # A A^T (code layout: A is N x K)
-        U = np.empty((K, M))  # u = E1 / sqrt(g), both dictionaries side by side
         sx, sy = 1.0 / np.sqrt(g_x), 1.0 / np.sqrt(g_y)
         for k in range(K):
             for m in range(M):
-                U[k, m] = E[k, m] * (sx if m < Mx else sy)
+                U[k, m] *= sx if m < Mx else sy
         Au = A @ U
         Wr = np.empty((N, M))
         for part in range(2):
@@ -622,20 +649,22 @@ def update_atoms(V, R, D, norms, B, S, g_xy, g_x, g_y, Mx, rng, g_ny=-1.0):
                     Wp[i, m] = c * (V[i, lo + m] - Au[i, m + lo]) - E2[i, lo + m]
             _tri_solve(Mm, Wp, False)
             _tri_solve(Mm, Wp, True)
-            f = c / g  # D^T = u + Phi^T w / g = u + (c / g) A^T w
+            # D^T = u + Phi^T w / g = u + (c / g) A^T w. The residual needs no product with H: with
+            # rhs = c (X^T - A u) - E2 and Mm w = rhs, H w = (g / gn)(rhs - w), so
+            # X^T - A D^T = X^T - A u - (c / g) H w = (E2 + w) / c.
+            f = c / g
             for i in range(N):
                 for m in range(hi - lo):
                     Wr[i, lo + m] = f * Wp[i, m]
+                    R[i, lo + m] = (E2[i, lo + m] + Wp[i, m]) / c
         Dp = A.T @ Wr
-        Hw = H @ Wr
         for k in range(K):
             for m in range(M):
                 D[k, m] = U[k, m] + Dp[k, m]
-        for i in range(N):
-            for m in range(M):
-                R[i, m] = V[i, m] - Au[i, m] - Hw[i, m]
         _row_norms(D, norms)
         return
+    E = np.empty((K, M))
+    _randn_fill(bg, E)
     G = np.empty((K, K))
     _syrk_gram(A, G, True)
     AV = A.T @ V
@@ -721,6 +750,16 @@ def _sum_sq(a):
     return acc
 
 
+@njit(cache=True, fastmath=_VEC)
+def _sum_sq_cols(X, lo, hi):
+    """sum of X[:, lo:hi]^2 for a C-contiguous 2-D X (vectorized along the rows' columns)."""
+    acc = 0.0
+    for r in range(X.shape[0]):
+        for m in range(lo, hi):
+            acc += X[r, m] * X[r, m]
+    return acc
+
+
 @njit(cache=True)
 def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, separate=False):
     """Gamma conditionals of the precisions (shape/rate), drawn in the order g_s, noise, g_x, g_y.
@@ -743,22 +782,12 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, sepa
     M = D.shape[1]
     My = M - Mx
     ss = _sum_sq(S)
-    dx = 0.0
-    dy = 0.0
-    for k in range(K):
-        for m in range(Mx):
-            dx += D[k, m] * D[k, m]
-        for m in range(Mx, M):
-            dy += D[k, m] * D[k, m]
+    dx = _sum_sq_cols(D, 0, Mx)
+    dy = _sum_sq_cols(D, Mx, M)
     prec[0] = rng.gamma(a0 + 0.5 * N * K, 1.0 / (b0 + 0.5 * ss))
     if separate:
-        rx = 0.0
-        ry = 0.0
-        for i in range(N):
-            for m in range(Mx):
-                rx += R[i, m] * R[i, m]
-            for m in range(Mx, M):
-                ry += R[i, m] * R[i, m]
+        rx = _sum_sq_cols(R, 0, Mx)
+        ry = _sum_sq_cols(R, Mx, M)
         prec[4] = rng.gamma(a_xy + 0.5 * N * Mx, 1.0 / (b_xy + 0.5 * rx))
         if My > 0:
             prec[5] = rng.gamma(a_xy + 0.5 * N * My, 1.0 / (b_xy + 0.5 * ry))
@@ -779,12 +808,14 @@ def update_precisions(R, D, S, prec, Mx, a0, b0, rng, a_xy=-1.0, b_xy=-1.0, sepa
 def _signs_t(B):
     """z = 2 b - 1, transposed to (K, N) so that atom k's vector is a contiguous row."""
     N, K = B.shape
-    Z = np.empty((N, K))
-    for i in range(N):
-        for k in range(K):
-            Z[i, k] = 1.0 if B[i, k] else -1.0
     Zt = np.empty((K, N))
-    _transpose_into(Z, Zt)
+    for i0 in range(0, N, _TILE):
+        i1 = min(i0 + _TILE, N)
+        for k0 in range(0, K, _TILE):
+            k1 = min(k0 + _TILE, K)
+            for k in range(k0, k1):
+                for i in range(i0, i1):
+                    Zt[k, i] = 2.0 * B[i, k] - 1.0  # branch-free: b is 0 or 1
     return Zt
 
 
@@ -908,7 +939,8 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     ratio ``sum_i [...] - Lambda . (w' - w)`` with the tight lambda; MH_LITERAL, the printed ratio and
     lambda_i = sigmoid(+z_i w_i) exactly as the appendix prints it. All K atoms are batched as matrix products
     (Sigma is symmetric, so atom-major (K, N) arrays are multiplied from the right). Draw order: a (K, N) array
-    of standard normals (row k for atom k), then K uniforms. Returns the number of accepted atoms.
+    of standard normals (row k for atom k), then K uniforms. Returns the number of accepted atoms. ``Lw`` must be
+    the Cholesky factor of ``Sigma`` (the proposal's noise and the ratio's quadratic terms use it).
     """
     N, K = W.shape
     exact = ratio == MH_EXACT
@@ -928,7 +960,14 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
     Lamp = np.empty((K, N))
     Sigp = np.empty((K, N))
     _bound_terms(Zt, Wp, Lamp, Sigp, ratio == MH_LITERAL)
-    Mup = Lamp @ Sigma if exact else Mu
+    # Lambda' . mu' = Lambda'^T Sigma Lambda' = ||Lw^T Lambda'||^2: a triangular product (half the flops of
+    # Lamp @ Sigma); mu' itself is not needed
+    quadp = np.empty(K)
+    if exact:
+        LamL = Lamp.copy()
+        _times_lower(LamL, Lw)  # row k: (Lw^T Lambda'_k)^T
+        for k in range(K):
+            quadp[k] = _dot_rows(LamL, k, LamL, k, N)
     U = np.empty(K)
     for k in range(K):
         U[k] = _rand(rng.bit_generator)
@@ -953,11 +992,13 @@ def update_w_mh(W, B, Sigma, Lw, rng, ratio=MH_EXACT, w_mean=0.0):
                 lr += (
                     (Wt[k, i] - w_mean) * Lamp[k, i]
                     - (Wp[k, i] - w_mean) * Lam[k, i]
-                    + 0.5 * (Lam[k, i] * Mu[k, i] - Lamp[k, i] * Mup[k, i])
+                    + 0.5 * Lam[k, i] * Mu[k, i]
                 )
             else:
                 lr -= Lam[k, i] * (Wp[k, i] - Wt[k, i])
         lr += np.log(prod)
+        if exact:
+            lr -= 0.5 * quadp[k]
         if np.log(U[k]) < lr:
             accepted += 1
             for i in range(N):
@@ -1071,11 +1112,14 @@ def _sweep(
 ):
     """One full Gibbs sweep: codes, atoms (+ residual), precisions, logits. Writes
     ``stats = [log-likelihood, number of active atoms, fraction of moved logit vectors]`` (MH: accepted)."""
+    keep = (
+        atom_code == 1
+    )  # the block atom update recomputes the residual; the single-site one reads it
     if separate:
-        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng)
+        update_codes_separate(R, D, B, S, W, prec[0], prec[4], prec[5], Mx, rng, keep)
         g_nx, g_ny = prec[4], prec[5]
     else:
-        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng)
+        update_codes(R, D, norms, B, S, W, prec[0], prec[1], rng, keep)
         g_nx, g_ny = prec[1], prec[1]
     if atom_code == 1:
         update_atoms_single(R, D, norms, B, S, g_nx, prec[2], prec[3], Mx, rng, g_ny)
