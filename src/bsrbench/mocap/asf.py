@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import DataFileError
 from ._text import first_bad_number, is_whole, read_lines, tokens
-from .skeleton import Skeleton, axis_rotation, forward_kinematics
+from .skeleton import Skeleton, axis_rotation, euler_matrix, forward_kinematics
 
 _DOF_CHANNEL = {
     "rx": "Xrotation",
@@ -601,23 +601,46 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
     return AMCData(asf, motion, float(frame_time), str(path))
 
 
+def asf_local_rotations(asf, motion, root_order=None):
+    """Local rotations (F, J, 3, 3) ``C M C^-1`` of every joint for values ``motion`` (F, C) in degrees, laid
+    out as ``asf.skeleton.channels``; ``M`` applies each joint's rotation dof in their listed order.
+
+    ``root_order`` (three rotation channel names, e.g. ``("Zrotation", "Xrotation", "Yrotation")``), when
+    given, reads the root's three rotation values as Euler angles in that order with the first the outermost
+    (the BVH convention, ``M = R_first @ R_second @ R_third``): the convention of the root's pose angles
+    (:data:`bsrbench.mocap.motion.AMC_ROOT_ORDER`)."""
+    skel = asf.skeleton
+    motion = np.asarray(motion, dtype=float)
+    F = motion.shape[0]
+    J = len(skel.joint_names)
+    R = np.empty((F, J, 3, 3))
+    for j, (chans, start) in enumerate(zip(skel.channels, skel.channel_starts())):
+        rot = {ch: start + k for k, ch in enumerate(chans) if ch.endswith("rotation")}
+        if j == 0 and root_order is not None:
+            if sorted(rot) != sorted(root_order):
+                raise DataFileError(
+                    asf.path,
+                    f"root rotation dof {sorted(rot)} cannot carry Euler angles in the order "
+                    f"{list(root_order)}; expected the same three rotations",
+                )
+            axes = [_AXIS[ch[0]] for ch in root_order]
+            M = euler_matrix(axes, motion[:, [rot[ch] for ch in root_order]])
+        else:
+            M = _order_matrix("".join(ch[0] for ch in rot), motion[:, list(rot.values())])
+        C = asf.axes[j]
+        R[:, j] = C @ M @ C.T
+    return R
+
+
 def asf_positions(asf, motion):
     """World joint positions (F, J, 3) for AMC values ``motion`` (F, C) in degrees."""
     skel = asf.skeleton
     motion = np.asarray(motion, dtype=float)
     F = motion.shape[0]
     J = len(skel.joint_names)
-    R = np.empty((F, J, 3, 3))
     T = np.broadcast_to(skel.offsets, (F, J, 3)).copy()
     for j, (chans, start) in enumerate(zip(skel.channels, skel.channel_starts())):
-        order, cols = "", []
         for k, ch in enumerate(chans):
-            if ch.endswith("rotation"):
-                order += ch[0]
-                cols.append(start + k)
-            else:
+            if ch.endswith("position"):
                 T[:, j, "XYZ".index(ch[0])] += motion[:, start + k]
-        M = _order_matrix(order, motion[:, cols])
-        C = asf.axes[j]
-        R[:, j] = C @ M @ C.T
-    return forward_kinematics(skel.parents, R, T)[0]
+    return forward_kinematics(skel.parents, asf_local_rotations(asf, motion), T)[0]
