@@ -483,10 +483,25 @@ def parse_asf(path):
     )
 
 
+#: Frame time (s) of an AMC motion: the files carry none; CMU captured at 120 Hz.
+AMC_FRAME_TIME = 1.0 / 120.0
+
+
+def amc_frame_count(path):
+    """Frames of an AMC file counted from its text alone: the lines that hold one whole number (the frame
+    numbers; comments and keyword lines are not frames), as :func:`parse_amc` reads them. A missing file is a
+    :class:`~bsrbench.errors.DataFileError`."""
+    count = 0
+    for raw in read_lines(path, "an AMC motion file"):
+        t = tokens(raw.split("#", 1)[0], commas=True)
+        count += len(t) == 1 and is_whole(t[0])
+    return count
+
+
 @dataclass
 class AMCData:
     """A parsed AMC motion: ``asf`` (its skeleton), ``motion`` (F, C) values in degrees laid out as
-    ``asf.skeleton.channels``, ``frame_time`` (s; AMC files carry none, CMU's rate is 120 Hz), ``path``."""
+    ``asf.skeleton.channels``, ``frame_time`` (s; AMC files carry none: :data:`AMC_FRAME_TIME`), ``path``."""
 
     asf: ASFSkeleton
     motion: np.ndarray
@@ -506,7 +521,7 @@ class AMCData:
         return asf_positions(self.asf, self.motion)
 
 
-def parse_amc(path, asf, frame_time=1.0 / 120.0):
+def parse_amc(path, asf, frame_time=AMC_FRAME_TIME):
     """Read an AMC motion file for the skeleton ``asf`` (an :class:`ASFSkeleton` or a path to an ASF file).
 
     Accepts the same text forms as :func:`parse_asf` (BOM, any line end, tabs, commas as white space, keywords
