@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from bsrbench.config import load_datasets
 from bsrbench.datasets import prepare_motion
+from bsrbench.errors import InputError
 from bsrbench.kinematics import features_pose_skeleton
 from bsrbench.mocap import (
     AMC_ROOT_ORDER,
@@ -17,7 +18,9 @@ from bsrbench.mocap import (
     parse_amc,
     parse_asf,
     parse_bvh,
+    read_trial,
     reexpress_amc_rotation,
+    trial_pose_positions,
     unwrap_degrees,
 )
 from bsrbench.mocap.asf import _order_matrix, asf_positions
@@ -219,3 +222,27 @@ def test_mpjpe_skeleton_reads_navigate_root_in_zxy():
     wrong = m.angles[idx].copy()
     wrong[:, :3] = amc[:, 3:6]
     assert np.abs(ps.positions(wrong) - want).max() > 100.0
+
+
+@pytest.mark.parametrize(
+    "files, asf, skip",
+    [
+        (["resources/cmu-mocap/09_12.amc"], "resources/cmu-mocap/09.asf", 0),
+        (["resources/cmu-mocap/12_02.bvh"], None, 6),
+    ],
+)
+def test_trial_pose_positions_give_the_files_pose_for_the_true_angles(files, asf, skip):
+    """A frame's own pose angles (Z X Y root for the AMC) put back into its trial give the file's joint positions
+    (root-centred), through the turn for navigate; another frame's angles give another pose."""
+    m = load_motion(
+        [ROOT / f for f in files], asf=None if asf is None else ROOT / asf, skip_frames=skip
+    )
+    trial = read_trial(ROOT / files[0], None if asf is None else ROOT / asf)
+    for k in (0, 500, 510, 516, 530, m.n_frames - 1):
+        tf = int(m.trial_frames[k])
+        got = trial_pose_positions(trial, tf, m.pose_joints, m.angles[k])
+        np.testing.assert_allclose(got, m.positions[k] - m.positions[k, 0], atol=1e-9)
+    other = trial_pose_positions(trial, int(m.trial_frames[0]), m.pose_joints, m.angles[300])
+    assert np.abs(other - (m.positions[0] - m.positions[0, 0])).max() > 1.0
+    with pytest.raises(InputError, match=r"expected 57 pose angles .* got shape \(56,\)"):
+        trial_pose_positions(trial, 0, m.pose_joints, m.angles[0][:56])

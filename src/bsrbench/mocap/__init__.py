@@ -8,7 +8,8 @@ Public API:
   :func:`bone_lengths`.
 * :func:`load_motion` -> :class:`Motion` (positions, 57 unwrapped angles, frame bookkeeping),
   :data:`JOINT_MAPS`, :func:`detect_skeleton_kind`, :func:`spread_indices`, :func:`unwrap_degrees`;
-  :data:`AMC_ROOT_ORDER`, :func:`reexpress_amc_rotation` (the Euler order of an AMC trial's root pose angles).
+  :data:`AMC_ROOT_ORDER`, :func:`reexpress_amc_rotation` (the Euler order of an AMC trial's root pose angles),
+  :func:`trial_pose_positions` (a trial frame's joints with its pose angles replaced).
 """
 
 from .asf import AMCData, ASFSkeleton, asf_local_rotations, asf_positions, parse_amc, parse_asf
@@ -24,6 +25,7 @@ from .motion import (
     reexpress_amc_rotation,
     resolve_joint_map,
     spread_indices,
+    trial_pose_positions,
     unwrap_degrees,
 )
 from .skeleton import (
@@ -59,6 +61,7 @@ __all__ = [
     "resolve_joint_map",
     "skeleton_positions",
     "spread_indices",
+    "trial_pose_positions",
     "unwrap_degrees",
     "write_bvh",
 ]

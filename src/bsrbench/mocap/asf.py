@@ -647,8 +647,9 @@ def asf_local_rotations(asf, motion, root_order=None):
     return R
 
 
-def asf_positions(asf, motion):
-    """World joint positions (F, J, 3) for AMC values ``motion`` (F, C) in degrees."""
+def asf_positions(asf, motion, root_order=None):
+    """World joint positions (F, J, 3) for AMC values ``motion`` (F, C) in degrees (``root_order``: see
+    :func:`asf_local_rotations`)."""
     skel = asf.skeleton
     motion = np.asarray(motion, dtype=float)
     F = motion.shape[0]
@@ -658,4 +659,4 @@ def asf_positions(asf, motion):
         for k, ch in enumerate(chans):
             if ch.endswith("position"):
                 T[:, j, "XYZ".index(ch[0])] += motion[:, start + k]
-    return forward_kinematics(skel.parents, asf_local_rotations(asf, motion), T)[0]
+    return forward_kinematics(skel.parents, asf_local_rotations(asf, motion, root_order), T)[0]

@@ -372,6 +372,33 @@ def _positions_of(trial, motion):
     return skeleton_positions(trial.skeleton, motion)
 
 
+def trial_pose_positions(trial, trial_frame, pose_joints, angles):
+    """Joint positions (J, 3), centred on the root, of frame ``trial_frame`` of a parsed trial (a BVH trial or an
+    AMC trial, e.g. from :func:`read_trial`) with its pose angles replaced by ``angles`` (the 57 columns of
+    :func:`load_motion` for ``pose_joints``: the files' channel order, the AMC root in :data:`AMC_ROOT_ORDER`).
+    Every other channel (root translation, fingers, toes, ...) keeps the file's value, so the true angles give
+    the file's own pose (for stick figures of true and predicted poses)."""
+    from .asf import asf_positions
+    from .skeleton import skeleton_positions
+
+    skel = trial.skeleton
+    root_order = amc_root_order(skel) if hasattr(trial, "asf") else None
+    cols, _ = pose_columns(skel, list(pose_joints), root_order)
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape != cols.shape:
+        raise InputError(
+            f"expected {cols.size} pose angles for joints {list(pose_joints)}; got shape {angles.shape}"
+        )
+    row = np.array(trial.motion[int(trial_frame)], dtype=float)
+    keep = cols >= 0
+    row[cols[keep]] = angles[keep]
+    if hasattr(trial, "asf"):
+        pos = asf_positions(trial.asf, row[None], root_order)[0]
+    else:
+        pos = skeleton_positions(skel, row[None])[0]
+    return pos - pos[0]
+
+
 def spread_indices(n_available, n_frames, source="<motion>"):
     """``n_frames`` indices spread evenly over ``range(n_available)``: ``round(linspace(0, n_available-1, n))``.
 
