@@ -382,3 +382,49 @@ def test_navigate_is_the_trial_in_the_authors_x09_rows():
     shifted = (theirs[4:, 2] - ours[:-4, 2] + 180.0) % 360.0 - 180.0
     assert np.median(np.abs(shifted)) > 2.0
     assert np.ptp(np.unwrap(np.deg2rad(theirs[:, 2]))) > np.pi  # the figure turns round
+
+
+# ------------------------------------------------------------------------------- AMC frames without parsing
+
+
+def test_count_motion_frames_counts_the_frame_lines_of_an_amc(tmp_path):
+    """An AMC's frames are its frame-number lines (one whole number on a line): the count matches what
+    parse_amc and prepare_motion find, comments and keyword lines are not frames, and a missing file gives
+    None as for BVH."""
+    from bsrbench.datasets import motion_frame_time, motion_frames
+    from bsrbench.mocap import parse_amc
+
+    lines = (DATA / "01_01.amc").read_text().splitlines()
+    text = "\n".join(["# 7", lines[0], "# frame 12"] + lines[1:]) + "\n"
+    (tmp_path / "01_01.amc").write_text(text)
+    shutil.copy(DATA / "01.asf", tmp_path / "01.asf")
+    n = parse_amc(tmp_path / "01_01.amc", tmp_path / "01.asf").n_frames
+    assert n == 3 and motion_frames(tmp_path / "01_01.amc") == n
+    for skip, step in ((0, 1), (1, 1), (0, 2), (1, 2)):
+        sel = prepare_motion(
+            [tmp_path / "01_01.amc"],
+            tmp_path / "m.npz",
+            n_frames=600,
+            frame_selection="first",
+            skip_frames=skip,
+            frame_step=step,
+            fewer_frames="use_all",
+        )
+        assert count_motion_frames([tmp_path / "01_01.amc"], skip, step) == sel.n_frames
+    # BVH and AMC trials add up; a missing AMC cannot be counted
+    both = count_motion_frames([CMU / "09_01.bvh", tmp_path / "01_01.amc"], 0, 1)
+    assert both == 149 + 3
+    assert count_motion_frames([tmp_path / "missing.amc"], 0, 4) is None
+    assert motion_frame_time(tmp_path / "01_01.amc") == pytest.approx(1 / 120)
+    assert motion_frame_time(CMU / "09_01.bvh") == pytest.approx(0.00833333)
+
+
+def test_navigate_is_counted_as_480_frames_before_it_is_prepared(monkeypatch):
+    """The report's frame note for navigate: 1918 frame lines at one in 4 give 480 (not n_frames = 600)."""
+    monkeypatch.chdir(ROOT)  # the configuration's paths are relative to the project
+    data = _datasets()
+    d = data.dataset("mocap", "navigate")
+    numbers = _amc_frame_numbers(CMU / "09_12.amc")
+    expect = len(range(int(d["skip_frames"]), len(numbers), int(d["frame_step"])))
+    assert count_motion_frames(d["files"], d["skip_frames"], d["frame_step"]) == expect == 480
+    assert data.data_frames("mocap", "navigate") == 480

@@ -20,7 +20,7 @@ from bsrbench.mocap import (
     spread_indices,
     write_bvh,
 )
-from bsrbench.mocap.skeleton import axis_rotation
+from bsrbench.mocap.skeleton import axis_rotation, euler_matrix
 
 ROOT = Path(__file__).resolve().parents[1]
 CMU = ROOT / "resources" / "cmu-mocap"
@@ -331,8 +331,16 @@ def test_amc_matches_equivalent_bvh():
     )
     assert ma.skeleton_kind == "asf" and ma.angles.shape == (3, 57)
     assert sorted(ma.angle_names) == sorted(mb.angle_names)
+    # every joint but the root has the file's angles; the AMC root is written in Z X Y order
+    assert ma.angle_names[:3] == ["root_Zrotation", "root_Xrotation", "root_Yrotation"]
     order = [mb.angle_names.index(n) for n in ma.angle_names]
-    np.testing.assert_allclose(ma.angles, mb.angles[:, order])
+    np.testing.assert_allclose(ma.angles[:, 3:], mb.angles[:, order][:, 3:])
+    assert mb.angle_names[:3] == ["root_Zrotation", "root_Yrotation", "root_Xrotation"]
+    np.testing.assert_allclose(
+        euler_matrix([2, 0, 1], ma.angles[:, :3]),
+        euler_matrix([2, 1, 0], mb.angles[:, :3]),
+        atol=1e-12,
+    )
     np.testing.assert_allclose(ma.positions, mb.positions, atol=1e-9)
     lengths = bone_lengths(ma.positions, ma.parents)
     np.testing.assert_allclose(lengths, np.broadcast_to(lengths[0], lengths.shape), atol=1e-9)

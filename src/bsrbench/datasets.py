@@ -13,6 +13,7 @@ Two kinds of data set entry (see config/datasets.yaml):
 Every loader verifies SHA-256 checksums when a checksum list is given, and every writer writes atomically.
 """
 
+import functools
 import hashlib
 import sys
 import urllib.error
@@ -228,15 +229,53 @@ def bvh_header(path):
     return None
 
 
+def _amc_frames(path):
+    """Frames of an AMC file (:func:`bsrbench.mocap.asf.amc_frame_count`), or None when it is missing; kept
+    per file version (the configuration asks again for every table that names the data set)."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    stat = p.stat()
+    return _amc_frames_cached(str(p.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=64)
+def _amc_frames_cached(path, mtime_ns, size):
+    from .mocap.asf import amc_frame_count
+
+    return amc_frame_count(path)
+
+
+def motion_frames(path):
+    """Frames of one motion file, from a BVH header (:func:`bvh_header`) or an AMC file's frame-number lines;
+    None when the file is missing, of another kind, or its header is malformed."""
+    if Path(path).suffix.lower() == ".amc":
+        return _amc_frames(path)
+    h = bvh_header(path)
+    return None if h is None else h[0]
+
+
+def motion_frame_time(path):
+    """Frame time (s) of one motion file: a BVH header's ``Frame Time:``, CMU's 1/120 s for an AMC file
+    (:data:`bsrbench.mocap.asf.AMC_FRAME_TIME`; AMC files carry none), None otherwise."""
+    from .mocap.asf import AMC_FRAME_TIME
+
+    if Path(path).suffix.lower() == ".amc":
+        return AMC_FRAME_TIME
+    h = bvh_header(path)
+    return None if h is None else h[1]
+
+
 def count_motion_frames(paths, skip_frames=1, frame_step=1):
-    """Frames that :func:`prepare_motion` would have to choose from, read from the BVH headers only
-    (:func:`bvh_header`), or None when a file is missing or not BVH (AMC frames are counted by parsing)."""
+    """Frames that :func:`prepare_motion` would have to choose from, counted without parsing the motion: from
+    the BVH headers, or the frame-number lines of AMC files (:func:`motion_frames`); None when a file is
+    missing or neither."""
     total = 0
     for p in paths:
-        h = bvh_header(p)
-        if h is None:
+        n = motion_frames(p)
+        if n is None:
             return None
-        total += len(step_frames(np.arange(int(skip_frames), h[0]), frame_step))
+        total += len(step_frames(np.arange(int(skip_frames), n), frame_step))
     return total
 
 

@@ -160,25 +160,13 @@ def _bvh_rotations(skeleton):
     return lambda motion: local_transforms(skeleton, motion)[0]
 
 
-def _asf_rotations(asf):
-    from .mocap.asf import _order_matrix
+def _asf_rotations(asf, root_order):
+    from .mocap.asf import asf_local_rotations
 
-    skel = asf.skeleton
-
-    def rotations(motion):
-        F, J = motion.shape[0], len(skel.joint_names)
-        R = np.empty((F, J, 3, 3))
-        for j, (chans, start) in enumerate(zip(skel.channels, skel.channel_starts())):
-            order = "".join(ch[0] for ch in chans if ch.endswith("rotation"))
-            cols = [start + k for k, ch in enumerate(chans) if ch.endswith("rotation")]
-            C = asf.axes[j]
-            R[:, j] = C @ _order_matrix(order, motion[:, cols]) @ C.T
-        return R
-
-    return rotations
+    return lambda motion: asf_local_rotations(asf, motion, root_order)
 
 
-def _pose_skeleton(source, skeleton, rotations, joint_map, kind, n_angles):
+def _pose_skeleton(source, skeleton, rotations, joint_map, kind, n_angles, root_order=None):
     from .mocap.motion import pose_columns
 
     joint_map = list(joint_map)
@@ -190,7 +178,7 @@ def _pose_skeleton(source, skeleton, rotations, joint_map, kind, n_angles):
                 f"{list(skeleton.joint_names)[:8]}..."
             )
     try:
-        cols, names = pose_columns(skeleton, joint_map)
+        cols, names = pose_columns(skeleton, joint_map, root_order)
     except InputError as exc:
         raise InputError(f"{source}: {exc}; {expected}") from None
     if cols.size != n_angles:
@@ -238,18 +226,21 @@ def mocap_pose_skeleton(path, joint_map=None, skeleton_kind=None, source=None):
     trials. ``joint_map`` (19 names) and ``skeleton_kind`` as for :func:`bsrbench.mocap.load_motion` (None:
     detected from the joint names). ``source`` names the skeleton in errors (default: the path)."""
     from .mocap import parse_asf, parse_bvh
-    from .mocap.motion import JOINT_MAPS, detect_skeleton_kind
+    from .mocap.motion import JOINT_MAPS, amc_root_order, detect_skeleton_kind
 
     path = Path(path)
     source = source or str(path)
     suffix = path.suffix.lower()
+    root_order = None
     if suffix == ".bvh":
         skel = parse_bvh(path).skeleton
         rotations = _bvh_rotations(skel)
     elif suffix == ".asf":
         asf = parse_asf(path)
         skel = asf.skeleton
-        rotations = _asf_rotations(asf)
+        # the root's pose angles of AMC trials are in the authors' order (bsrbench.mocap.load_motion)
+        root_order = amc_root_order(skel)
+        rotations = _asf_rotations(asf, root_order)
         skeleton_kind = skeleton_kind or "asf"
     else:
         raise InputError(f"{source}: expected a .bvh or .asf skeleton file; got {suffix!r}")
@@ -260,7 +251,7 @@ def mocap_pose_skeleton(path, joint_map=None, skeleton_kind=None, source=None):
         )
     if joint_map is None:
         joint_map = JOINT_MAPS[kind]
-    return _pose_skeleton(source, skel, rotations, joint_map, kind, N_POSE_ANGLES)
+    return _pose_skeleton(source, skel, rotations, joint_map, kind, N_POSE_ANGLES, root_order)
 
 
 # ---------------------------------------------------------------------------------------------------- errors

@@ -7,20 +7,25 @@ Public API:
 * :class:`Skeleton`, :func:`forward_kinematics`, :func:`local_transforms`, :func:`skeleton_positions`,
   :func:`bone_lengths`.
 * :func:`load_motion` -> :class:`Motion` (positions, 57 unwrapped angles, frame bookkeeping),
-  :data:`JOINT_MAPS`, :func:`detect_skeleton_kind`, :func:`spread_indices`, :func:`unwrap_degrees`.
+  :data:`JOINT_MAPS`, :func:`detect_skeleton_kind`, :func:`spread_indices`, :func:`unwrap_degrees`;
+  :data:`AMC_ROOT_ORDER`, :func:`reexpress_amc_rotation` (the Euler order of an AMC trial's root pose angles),
+  :func:`trial_pose_positions` (a trial frame's joints with its pose angles replaced).
 """
 
-from .asf import AMCData, ASFSkeleton, asf_positions, parse_amc, parse_asf
+from .asf import AMCData, ASFSkeleton, asf_local_rotations, asf_positions, parse_amc, parse_asf
 from .bvh import BVHData, format_bvh, parse_bvh, write_bvh
 from .motion import (
+    AMC_ROOT_ORDER,
     JOINT_MAPS,
     Motion,
     detect_skeleton_kind,
     load_motion,
     pose_columns,
     read_trial,
+    reexpress_amc_rotation,
     resolve_joint_map,
     spread_indices,
+    trial_pose_positions,
     unwrap_degrees,
 )
 from .skeleton import (
@@ -32,12 +37,14 @@ from .skeleton import (
 )
 
 __all__ = [
+    "AMC_ROOT_ORDER",
     "AMCData",
     "ASFSkeleton",
     "BVHData",
     "JOINT_MAPS",
     "Motion",
     "Skeleton",
+    "asf_local_rotations",
     "asf_positions",
     "bone_lengths",
     "detect_skeleton_kind",
@@ -50,9 +57,11 @@ __all__ = [
     "parse_bvh",
     "pose_columns",
     "read_trial",
+    "reexpress_amc_rotation",
     "resolve_joint_map",
     "skeleton_positions",
     "spread_indices",
+    "trial_pose_positions",
     "unwrap_degrees",
     "write_bvh",
 ]

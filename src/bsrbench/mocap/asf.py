@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import DataFileError
 from ._text import first_bad_number, is_whole, read_lines, tokens
-from .skeleton import Skeleton, axis_rotation, forward_kinematics
+from .skeleton import Skeleton, axis_rotation, euler_matrix, forward_kinematics
 
 _DOF_CHANNEL = {
     "rx": "Xrotation",
@@ -483,10 +483,25 @@ def parse_asf(path):
     )
 
 
+#: Frame time (s) of an AMC motion: the files carry none; CMU captured at 120 Hz.
+AMC_FRAME_TIME = 1.0 / 120.0
+
+
+def amc_frame_count(path):
+    """Frames of an AMC file counted from its text alone: the lines that hold one whole number (the frame
+    numbers; comments and keyword lines are not frames), as :func:`parse_amc` reads them. A missing file is a
+    :class:`~bsrbench.errors.DataFileError`."""
+    count = 0
+    for raw in read_lines(path, "an AMC motion file"):
+        t = tokens(raw.split("#", 1)[0], commas=True)
+        count += len(t) == 1 and is_whole(t[0])
+    return count
+
+
 @dataclass
 class AMCData:
     """A parsed AMC motion: ``asf`` (its skeleton), ``motion`` (F, C) values in degrees laid out as
-    ``asf.skeleton.channels``, ``frame_time`` (s; AMC files carry none, CMU's rate is 120 Hz), ``path``."""
+    ``asf.skeleton.channels``, ``frame_time`` (s; AMC files carry none: :data:`AMC_FRAME_TIME`), ``path``."""
 
     asf: ASFSkeleton
     motion: np.ndarray
@@ -506,7 +521,7 @@ class AMCData:
         return asf_positions(self.asf, self.motion)
 
 
-def parse_amc(path, asf, frame_time=1.0 / 120.0):
+def parse_amc(path, asf, frame_time=AMC_FRAME_TIME):
     """Read an AMC motion file for the skeleton ``asf`` (an :class:`ASFSkeleton` or a path to an ASF file).
 
     Accepts the same text forms as :func:`parse_asf` (BOM, any line end, tabs, commas as white space, keywords
@@ -601,23 +616,47 @@ def parse_amc(path, asf, frame_time=1.0 / 120.0):
     return AMCData(asf, motion, float(frame_time), str(path))
 
 
-def asf_positions(asf, motion):
-    """World joint positions (F, J, 3) for AMC values ``motion`` (F, C) in degrees."""
+def asf_local_rotations(asf, motion, root_order=None):
+    """Local rotations (F, J, 3, 3) ``C M C^-1`` of every joint for values ``motion`` (F, C) in degrees, laid
+    out as ``asf.skeleton.channels``; ``M`` applies each joint's rotation dof in their listed order.
+
+    ``root_order`` (three rotation channel names, e.g. ``("Zrotation", "Xrotation", "Yrotation")``), when
+    given, reads the root's three rotation values as Euler angles in that order with the first the outermost
+    (the BVH convention, ``M = R_first @ R_second @ R_third``): the convention of the root's pose angles
+    (:data:`bsrbench.mocap.motion.AMC_ROOT_ORDER`)."""
     skel = asf.skeleton
     motion = np.asarray(motion, dtype=float)
     F = motion.shape[0]
     J = len(skel.joint_names)
     R = np.empty((F, J, 3, 3))
-    T = np.broadcast_to(skel.offsets, (F, J, 3)).copy()
     for j, (chans, start) in enumerate(zip(skel.channels, skel.channel_starts())):
-        order, cols = "", []
-        for k, ch in enumerate(chans):
-            if ch.endswith("rotation"):
-                order += ch[0]
-                cols.append(start + k)
-            else:
-                T[:, j, "XYZ".index(ch[0])] += motion[:, start + k]
-        M = _order_matrix(order, motion[:, cols])
+        rot = {ch: start + k for k, ch in enumerate(chans) if ch.endswith("rotation")}
+        if j == 0 and root_order is not None:
+            if sorted(rot) != sorted(root_order):
+                raise DataFileError(
+                    asf.path,
+                    f"root rotation dof {sorted(rot)} cannot carry Euler angles in the order "
+                    f"{list(root_order)}; expected the same three rotations",
+                )
+            axes = [_AXIS[ch[0]] for ch in root_order]
+            M = euler_matrix(axes, motion[:, [rot[ch] for ch in root_order]])
+        else:
+            M = _order_matrix("".join(ch[0] for ch in rot), motion[:, list(rot.values())])
         C = asf.axes[j]
         R[:, j] = C @ M @ C.T
-    return forward_kinematics(skel.parents, R, T)[0]
+    return R
+
+
+def asf_positions(asf, motion, root_order=None):
+    """World joint positions (F, J, 3) for AMC values ``motion`` (F, C) in degrees (``root_order``: see
+    :func:`asf_local_rotations`)."""
+    skel = asf.skeleton
+    motion = np.asarray(motion, dtype=float)
+    F = motion.shape[0]
+    J = len(skel.joint_names)
+    T = np.broadcast_to(skel.offsets, (F, J, 3)).copy()
+    for j, (chans, start) in enumerate(zip(skel.channels, skel.channel_starts())):
+        for k, ch in enumerate(chans):
+            if ch.endswith("position"):
+                T[:, j, "XYZ".index(ch[0])] += motion[:, start + k]
+    return forward_kinematics(skel.parents, asf_local_rotations(asf, motion, root_order), T)[0]

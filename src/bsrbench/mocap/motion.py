@@ -7,14 +7,16 @@ roles): see :data:`JOINT_MAPS`.
 
 Angles are the joints' rotation channels in degrees, in the file's channel order, named
 ``<joint>_<channel>`` (e.g. ``rShldr_Zrotation``); a joint with fewer than three rotation channels gets constant
-zero columns for the missing axes (in X, Y, Z order). Each angle is unwrapped over time (``numpy.unwrap`` with a
-period of 360 degrees), so a 179 -> -179 step becomes 179 -> 181.
+zero columns for the missing axes (in X, Y, Z order). The one exception is the root of AMC trials, whose rotation
+is written in the authors' Z X Y order (:data:`AMC_ROOT_ORDER`, :func:`reexpress_amc_rotation`). Each angle is
+unwrapped over time (``numpy.unwrap`` with a period of 360 degrees), so a 179 -> -179 step becomes 179 -> 181.
 """
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..errors import DataFileError, InputError
 from .asf import ASFSkeleton, parse_amc, parse_asf
@@ -95,6 +97,13 @@ JOINT_MAPS = {
     ],
 }
 
+#: Euler order of the root's pose angles from AMC trials: the authors' (``bsrbench.authors``; BVH channel names,
+#: the first the outermost, so R = Rz @ Rx @ Ry), whose last angle, about the vertical y axis, is the heading and
+#: free over the whole circle. The AMC files give the root in X Y Z order (R = Rz @ Ry @ Rx): there the heading is
+#: the middle angle, confined to [-90, 90], and as the figure turns past 90 degrees X and Z swing by 180 degrees
+#: within a few frames. BVH trials keep their files' order: their roots show no such swing (docs/data.md).
+AMC_ROOT_ORDER = ("Zrotation", "Xrotation", "Yrotation")
+
 #: Joints whose presence identifies a skeleton kind.
 _SIGNATURES = {
     "daz": {"hip", "abdomen", "rShldr", "lShldr", "rThigh"},
@@ -136,8 +145,11 @@ def resolve_joint_map(joint_map, skeleton_kind, joint_names, source="<skeleton>"
     return joint_map
 
 
-def pose_columns(skeleton, joint_map):
-    """For each pose angle: (column in a motion row or -1 for a constant zero, name ``joint_channel``)."""
+def pose_columns(skeleton, joint_map, root_order=None):
+    """For each pose angle: (column in a motion row or -1 for a constant zero, name ``joint_channel``).
+
+    ``root_order`` (three rotation channel names), when given, lists the root's three angles in that order
+    instead of the file's (see :data:`AMC_ROOT_ORDER`); the root must then have exactly those rotations."""
     starts = skeleton.channel_starts()
     cols, names = [], []
     for jn in joint_map:
@@ -147,13 +159,42 @@ def pose_columns(skeleton, joint_map):
         ]
         if len(rot) > 3:
             raise InputError(f"joint {jn!r} has {len(rot)} rotation channels; expected at most 3")
-        if len(rot) < 3:
+        if j == 0 and root_order is not None:
+            have = {ch: c for c, ch in rot}
+            if sorted(have) != sorted(root_order):
+                raise InputError(
+                    f"root joint {jn!r} rotates about {sorted(have)}; the order {list(root_order)} "
+                    f"needs the same three rotations"
+                )
+            rot = [(have[ch], ch) for ch in root_order]
+        elif len(rot) < 3:
             have = {ch: c for c, ch in rot}
             rot = [(have.get(ch, -1), ch) for ch in ("Xrotation", "Yrotation", "Zrotation")]
         for c, ch in rot:
             cols.append(c)
             names.append(f"{jn}_{ch}")
     return np.array(cols, dtype=int), names
+
+
+def amc_root_order(skeleton):
+    """:data:`AMC_ROOT_ORDER` if the root of an ASF ``skeleton`` rotates about all three axes, else None
+    (a root with fewer rotations keeps its file's order, with zero columns as any joint)."""
+    rot = sorted(ch for ch in skeleton.channels[0] if ch in ROTATION_AXES)
+    return AMC_ROOT_ORDER if rot == sorted(AMC_ROOT_ORDER) else None
+
+
+def reexpress_amc_rotation(angles, channels, order=AMC_ROOT_ORDER):
+    """AMC Euler angles ``angles`` (F, 3) in degrees, applied in the order of ``channels`` (AMC dof order:
+    ``rx ry rz`` gives R = Rz @ Ry @ Rx), written as Euler angles in ``order`` with the first the outermost
+    (R = R_order[0] @ R_order[1] @ R_order[2], the BVH convention): the same rotations, with the first and last
+    angles in (-180, 180] and the middle in [-90, 90]. Unwrap them over time afterwards (:func:`unwrap_degrees`)."""
+    angles = np.asarray(angles, dtype=float)
+    axes_in = "".join(ch[0] for ch in channels)
+    axes_out = "".join(ch[0] for ch in order)
+    # scipy's lower-case (extrinsic) axes apply the rotations in the listed order; upper-case (intrinsic)
+    # axes make the first listed the outermost.
+    R = Rotation.from_euler(axes_in.lower(), angles.reshape(-1, 3), degrees=True)
+    return R.as_euler(axes_out.upper(), degrees=True).reshape(angles.shape)
 
 
 def unwrap_degrees(angles, axis=0):
@@ -235,7 +276,8 @@ def load_motion(
     (the rest pose that the cgspeed BVH converter adds; CMU's AMC files have none, so pass False for them).
     ``skip_frames`` (int), when given, replaces it: that many leading frames of every trial are dropped (the
     Daz-friendly converter also blends from the rest pose into the motion over frames 1-5).
-    Angles are unwrapped over the concatenated sequence.
+    Angles are unwrapped over the concatenated sequence; the root of AMC trials is written in
+    :data:`AMC_ROOT_ORDER` first.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -265,7 +307,16 @@ def load_motion(
             else detect_skeleton_kind(skel.joint_names, str(paths[0]))
         )
     pose_joints = resolve_joint_map(joint_map, kind, skel.joint_names, str(paths[0]))
-    cols, angle_names = pose_columns(skel, pose_joints)
+    root_order = amc_root_order(skel) if hasattr(first, "asf") else None
+    cols, angle_names = pose_columns(skel, pose_joints, root_order)
+    root_pose = (
+        3 * pose_joints.index(skel.joint_names[0]) if skel.joint_names[0] in pose_joints else -1
+    )
+    root_rot = [
+        (skel.channel_starts()[0] + k, ch)
+        for k, ch in enumerate(skel.channels[0])
+        if ch in ROTATION_AXES
+    ]
 
     positions, angles, tidx, tfr = [], [], [], []
     if skip_frames is None:
@@ -286,6 +337,10 @@ def load_motion(
         motion = t.motion[start:]
         pos = _positions_of(t, motion)
         ang = np.where(cols >= 0, motion[:, np.maximum(cols, 0)], 0.0)
+        if root_order is not None and root_pose >= 0:
+            ang[:, root_pose : root_pose + 3] = reexpress_amc_rotation(
+                motion[:, [c for c, _ in root_rot]], [ch for _, ch in root_rot], root_order
+            )
         positions.append(pos)
         angles.append(ang)
         tidx.append(np.full(len(motion), k))
@@ -315,6 +370,33 @@ def _positions_of(trial, motion):
     if hasattr(trial, "asf"):
         return asf_positions(trial.asf, motion)
     return skeleton_positions(trial.skeleton, motion)
+
+
+def trial_pose_positions(trial, trial_frame, pose_joints, angles):
+    """Joint positions (J, 3), centred on the root, of frame ``trial_frame`` of a parsed trial (a BVH trial or an
+    AMC trial, e.g. from :func:`read_trial`) with its pose angles replaced by ``angles`` (the 57 columns of
+    :func:`load_motion` for ``pose_joints``: the files' channel order, the AMC root in :data:`AMC_ROOT_ORDER`).
+    Every other channel (root translation, fingers, toes, ...) keeps the file's value, so the true angles give
+    the file's own pose (for stick figures of true and predicted poses)."""
+    from .asf import asf_positions
+    from .skeleton import skeleton_positions
+
+    skel = trial.skeleton
+    root_order = amc_root_order(skel) if hasattr(trial, "asf") else None
+    cols, _ = pose_columns(skel, list(pose_joints), root_order)
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape != cols.shape:
+        raise InputError(
+            f"expected {cols.size} pose angles for joints {list(pose_joints)}; got shape {angles.shape}"
+        )
+    row = np.array(trial.motion[int(trial_frame)], dtype=float)
+    keep = cols >= 0
+    row[cols[keep]] = angles[keep]
+    if hasattr(trial, "asf"):
+        pos = asf_positions(trial.asf, row[None], root_order)[0]
+    else:
+        pos = skeleton_positions(skel, row[None])[0]
+    return pos - pos[0]
 
 
 def spread_indices(n_available, n_frames, source="<motion>"):
