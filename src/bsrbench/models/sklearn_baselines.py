@@ -135,9 +135,10 @@ class _SharedKernelGPR(GaussianProcessRegressor):
     The m outputs (columns of the normalized y) share one kernel K, so the gradient of the summed log marginal
     likelihood (Rasmussen & Williams 2006, eq. 5.9, summed over the outputs) is one contraction,
     ``0.5 * sum_ij W_ij dK_ij/dtheta_k`` with ``W = alpha alpha^T - m K^-1`` and ``alpha = K^-1 y``,
-    instead of scikit-learn's m contractions of the n x n x (parameters) kernel gradient (which took most of a
-    fit: 57 outputs). The value, the jitter ``alpha`` on K's diagonal, the normalization, the optimizer and its
-    restarts are scikit-learn's; only the gradient's arithmetic (the order of the sums) differs.
+    instead of scikit-learn's m contractions of the n x n x (parameters) kernel gradient (most of a fit's
+    time with the study's 58 outputs). The value, the jitter ``alpha`` on K's diagonal, the normalization, the
+    optimizer and its restarts are scikit-learn's; only the gradient's arithmetic (the order of the sums)
+    differs.
     """
 
     def log_marginal_likelihood(self, theta=None, eval_gradient=False, clone_kernel=True):
@@ -177,6 +178,8 @@ class GaussianProcessARD(_ScaledRegressor):
     The length scales start at the median distance between the scaled training inputs; the predictive std
     (``predict(X, return_std=True)``, one per output) includes the white noise, i.e. it is the std of a new
     observed angle.
+    The marginal likelihood's gradient is summed over the outputs before its contraction with the kernel's
+    gradient (:class:`_SharedKernelGPR`): scikit-learn's optimum at a fraction of the cost.
 
     Parameters
     ----------
