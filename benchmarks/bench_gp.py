@@ -1,13 +1,14 @@
 """The GP baseline's fit: the summed marginal-likelihood gradient against scikit-learn's per-output one.
 
 ``GaussianProcessARD`` fits ``_SharedKernelGPR`` (the gradient of the log marginal likelihood summed over the
-outputs before its contraction with the kernel's gradient); "stock" is the same estimator fitting scikit-learn's
-``GaussianProcessRegressor`` (one contraction per output). Data: the authors' golf features
-(resources/paper-features/x63.mat, first 600 frames), heading transform (58 outputs), the study's random split
-of seed 0 at each N (``JobSpec("hsc", "golf", "GP", N, 0)``), the study's settings (50 L-BFGS-B iterations,
-no restart).
+outputs before its contraction with the kernel's gradient, in closed form for the baseline's kernel: "closed");
+"summed" is the same with the general contraction of the n x n x (parameters) kernel gradient; "stock" is the
+same estimator fitting scikit-learn's ``GaussianProcessRegressor`` (one contraction per output). Data: the
+authors' golf features (resources/paper-features/x63.mat, first 600 frames), heading transform (58 outputs),
+the study's random split of seed 0 at each N (``JobSpec("hsc", "golf", "GP", N, 0)``), the study's settings
+(50 L-BFGS-B iterations, no restart).
 
-Measured per N, the two variants interleaved in one process (their order alternating between repeats), one
+Measured per N, the three variants interleaved in one process (their order rotating between repeats), one
 BLAS thread: median wall and CPU seconds of ``fit``; median milliseconds of one log-marginal-likelihood
 evaluation with its gradient at the fitted hyper-parameters; the test error of each fit (mean over the 57
 angles of the per-angle RMS, degrees) and the largest difference of the fitted log hyper-parameters.
@@ -34,18 +35,29 @@ from bsrbench.poses import HeadingTransform
 from bsrbench.splits import JobSpec
 
 ROOT = Path(__file__).resolve().parents[1]
-VARIANTS = {"stock": GaussianProcessRegressor, "summed": _SharedKernelGPR}
+VARIANTS = {
+    "stock": GaussianProcessRegressor,
+    "summed": _SharedKernelGPR,
+    "closed": _SharedKernelGPR,
+}
+CLOSED_FORM = sklearn_baselines._scaled_rbf_plus_noise
+
+
+def _use(variant):
+    """Make GaussianProcessARD fit ``variant``: scikit-learn's class, the summed gradient's general
+    contraction (no closed form), or the closed form (the code as it is)."""
+    sklearn_baselines._SharedKernelGPR = VARIANTS[variant]
+    sklearn_baselines._scaled_rbf_plus_noise = (
+        CLOSED_FORM if variant == "closed" else (lambda kernel: None)
+    )
 
 
 def fit(variant, X, Z):
-    """GaussianProcessARD fitted with the regressor class of ``variant``; wall and CPU seconds."""
-    sklearn_baselines._SharedKernelGPR = VARIANTS[variant]
-    try:
-        w0, c0 = time.perf_counter(), time.process_time()
-        est = GaussianProcessARD(random_state=0).fit(X, Z)
-        return est, time.perf_counter() - w0, time.process_time() - c0
-    finally:
-        sklearn_baselines._SharedKernelGPR = _SharedKernelGPR
+    """GaussianProcessARD fitted as ``variant``; wall and CPU seconds."""
+    _use(variant)
+    w0, c0 = time.perf_counter(), time.process_time()
+    est = GaussianProcessARD(random_state=0).fit(X, Z)
+    return est, time.perf_counter() - w0, time.process_time() - c0
 
 
 def eval_ms(gp, repeats=5):
@@ -77,12 +89,12 @@ def main():
         for r in range(a.repeats):
             for n in a.sizes:
                 train, test = splits[n]
-                order = list(VARIANTS) if r % 2 == 0 else list(VARIANTS)[::-1]
+                order = list(VARIANTS)[r % len(VARIANTS) :] + list(VARIANTS)[: r % len(VARIANTS)]
                 for v in order:
                     est, wall, cpu = fit(v, fs.X[train], tf.forward(fs.Y[train]))
                     res[n, v]["wall"].append(wall)
                     res[n, v]["cpu"].append(cpu)
-                    res[n, v]["eval"].append(eval_ms(est.model_))
+                    res[n, v]["eval"].append(eval_ms(est.model_))  # still as variant v
                     err = mean_angle_error(fs.Y[test], tf.inverse(est.predict(fs.X[test])))
                     last[n, v] = (est.model_.kernel_.theta, err)
     print(
@@ -90,21 +102,22 @@ def main():
         f"median of {a.repeats} interleaved repeats, 1 BLAS thread; load average "
         f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}\n"
     )
+    _use("closed")
     print(
-        "| N | stock fit s (CPU) | summed fit s (CPU) | ratio wall (CPU) | one evaluation ms stock / "
-        "summed | error deg stock / summed | max abs diff log theta |"
+        "| N | variant | fit s wall | fit s CPU | CPU / stock | one evaluation ms | error deg | "
+        "diff from stock deg | max abs diff log theta from stock |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for n in a.sizes:
-        s, m = res[n, "stock"], res[n, "summed"]
-        med = {k: (float(np.median(s[k])), float(np.median(m[k]))) for k in s}
-        (th_s, err_s), (th_m, err_m) = last[n, "stock"], last[n, "summed"]
-        print(
-            f"| {n} | {med['wall'][0]:.2f} ({med['cpu'][0]:.2f}) | {med['wall'][1]:.2f} ({med['cpu'][1]:.2f}) "
-            f"| {med['wall'][1] / med['wall'][0]:.2f} ({med['cpu'][1] / med['cpu'][0]:.2f}) "
-            f"| {med['eval'][0]:.1f} / {med['eval'][1]:.1f} | {err_s:.7f} / {err_m:.7f} "
-            f"(diff {abs(err_s - err_m):.1e}) | {np.abs(th_s - th_m).max():.1e} |"
-        )
+        cpu0 = float(np.median(res[n, "stock"]["cpu"]))
+        th0, err0 = last[n, "stock"]
+        for v in VARIANTS:
+            med = {k: float(np.median(x)) for k, x in res[n, v].items()}
+            th, err = last[n, v]
+            print(
+                f"| {n} | {v} | {med['wall']:.2f} | {med['cpu']:.2f} | {med['cpu'] / cpu0:.2f} "
+                f"| {med['eval']:.1f} | {err:.7f} | {abs(err - err0):.1e} | {np.abs(th - th0).max():.1e} |"
+            )
 
 
 if __name__ == "__main__":
