@@ -442,7 +442,7 @@ def test_cv_seed_grid_table_methods_and_data_status():
 
 
 def test_report_arg_reads_snakemakes_report_option():
-    from bsrbench.config import report_arg
+    from bsrbench.results import report_arg
 
     assert report_arg(["snakemake", "--cores", "2"]) is None
     assert report_arg(["snakemake", "--report", "r/x.html"]) == "r/x.html"
@@ -456,7 +456,7 @@ def test_report_checks_and_the_design_change_message(tmp_path, monkeypatch):
     message names what changed; a table of the configured design passes both."""
     import pandas as pd
 
-    from bsrbench.config import KEY_COLUMNS, check_report_is_current, design_change_message
+    from bsrbench.results import KEY_COLUMNS, check_report_is_current, design_change_message
     from bsrbench.errors import DataFileError
 
     monkeypatch.chdir(tmp_path)

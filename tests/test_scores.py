@@ -10,7 +10,7 @@ from scipy.stats import kstest, norm
 from bsrbench import scores as S
 from bsrbench.errors import InputError
 from bsrbench.kinematics import hsc_pose_skeleton, mpjpe, pa_mpjpe
-from bsrbench.metrics import extra_scores
+from bsrbench.runs import extra_scores
 
 
 def _crps_by_integration(y, mu, sigma):

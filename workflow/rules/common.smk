@@ -5,12 +5,8 @@ from pathlib import Path
 
 from snakemake.logging import logger
 
-from bsrbench.config import (
-    check_report_is_current,
-    design_change_message,
-    load_study,
-    report_arg,
-)
+from bsrbench.config import load_study
+from bsrbench.results import check_report_is_current, design_change_message, report_arg
 
 STUDY = load_study(
     DATA,
