@@ -456,8 +456,8 @@ def test_report_checks_and_the_design_change_message(tmp_path, monkeypatch):
     message names what changed; a table of the configured design passes both."""
     import pandas as pd
 
-    from bsrbench.results import KEY_COLUMNS, check_report_is_current, design_change_message
     from bsrbench.errors import DataFileError
+    from bsrbench.results import KEY_COLUMNS, check_report_is_current, design_change_message
 
     monkeypatch.chdir(tmp_path)
     study = _study(

@@ -21,7 +21,8 @@ from types import MappingProxyType
 
 import yaml
 
-from .errors import DataFileError, InputError
+from .errors import InputError
+from .paper import PAPER_ACTIVITIES
 from .results import KEY_COLUMNS, design_changes, study_of  # noqa: F401 (names of the aggregate table's checks)
 
 #: The JSON schemas of the configuration (a source checkout; the Snakefile passes its own folder).
@@ -39,17 +40,6 @@ JOB_MODULES = (
     "bsrbench.kinematics",
     "bsrbench.tuning",
 )
-#: The paper's eight activities (Table I: Acrobatics, Navigate, Golf; Table II: the other five).
-PAPER_ACTIVITIES = [
-    ("Table I", "Acrobatics"),
-    ("Table I", "Navigate"),
-    ("Table I", "Golf"),
-    ("Table II", "Throw and catch football"),
-    ("Table II", "Michael jackson styled motions"),
-    ("Table II", "Kick soccer ball"),
-    ("Table II", "Run"),
-    ("Table II", "Walk"),
-]
 
 
 # ------------------------------------------------------------------------------------------- command line

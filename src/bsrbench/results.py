@@ -142,7 +142,6 @@ def check_rows(df, *, path):
             )
 
 
-
 # ----------------------------------------------------------------------------------- the aggregate table
 def design_values(design, column):
     """The configured values of one key column (sorted), from a :func:`check_design` design."""

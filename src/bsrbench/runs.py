@@ -13,11 +13,11 @@ from importlib import metadata
 
 import numpy as np
 
+from . import kinematics, scores
 from .convergence import convergence_summary
 from .errors import InputError
 from .estimators import make_estimator, supports_std
 from .io import to_builtin
-from . import kinematics, scores
 from .metrics import check_pair, interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
 from .results import row_key

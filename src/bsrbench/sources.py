@@ -72,7 +72,9 @@ def closure(names, graph=None):
         if name in seen:
             continue
         if name not in graph:
-            raise ValueError(f"{name!r} is not a module of the package; expected one of {sorted(graph)}")
+            raise ValueError(
+                f"{name!r} is not a module of the package; expected one of {sorted(graph)}"
+            )
         seen.add(name)
         todo.extend(graph[name])
     return sorted(seen)

@@ -13,6 +13,7 @@ import pandas as pd
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
+from ..paper import PAPER_TABLES
 from ..results import (  # noqa: F401 (the aggregate table's functions, under the names the scripts use)
     KEY_COLUMNS,
     aggregate_files,
@@ -22,17 +23,6 @@ from ..results import (  # noqa: F401 (the aggregate table's functions, under th
     write_csv,
 )
 
-#: The paper's activities per table, spelled as in the paper.
-PAPER_TABLES = {
-    "I": ["Acrobatics", "Navigate", "Golf"],
-    "II": [
-        "Throw and catch football",
-        "Michael jackson styled motions",
-        "Kick soccer ball",
-        "Run",
-        "Walk",
-    ],
-}
 #: Methods of the paper's tables (their labels), in the paper's column order.
 PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 #: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
