@@ -22,24 +22,13 @@ from types import MappingProxyType
 import yaml
 
 from .errors import InputError
+from .methods import registry
 from .paper import PAPER_ACTIVITIES
 from .results import KEY_COLUMNS, design_changes, study_of  # noqa: F401 (names of the aggregate table's checks)
 
 #: The JSON schemas of the configuration (a source checkout; the Snakefile passes its own folder).
 SCHEMAS = Path(__file__).resolve().parents[2] / "workflow" / "schemas"
 MOTION_FORMATS = ("bvh", "amc")
-#: The modules of a job's logic: an edit of one reruns the fit and CV jobs.
-JOB_MODULES = (
-    "bsrbench.runs",
-    "bsrbench.splits",
-    "bsrbench.estimators",
-    "bsrbench.io",
-    "bsrbench.poses",
-    "bsrbench.metrics",
-    "bsrbench.scores",
-    "bsrbench.kinematics",
-    "bsrbench.tuning",
-)
 
 
 # ------------------------------------------------------------------------------------------- command line
@@ -912,9 +901,15 @@ class Study:
         """The configuration of method ``name`` (estimator, label, params, cv_params, grid, chains)."""
         return self.config["methods"][name]
 
+    def registry(self):
+        """{name: :class:`bsrbench.methods.Method`} of every configured method (run ones first, in table order)."""
+        names = self.run + [m for m in self.config["methods"] if m not in self.run]
+        return registry(self.config["methods"], names)
+
     def method_labels(self):
         """{method: label} for every method run, in table order."""
-        return {m: self.method(m).get("label", m) for m in self.run}
+        methods = self.registry()
+        return {m: methods[m].label for m in self.run}
 
     def conformal(self, name):
         """The split-conformal settings of a method's fits, ``{"level", "params"}``, or None (``conformal_level``
@@ -928,7 +923,8 @@ class Study:
 
     def method_groups(self):
         """{method: its table block, "paper" or "today"} for every method run (methods.<M>.group)."""
-        return {m: self.method(m).get("group") or "paper" for m in self.run}
+        methods = self.registry()
+        return {m: methods[m].group for m in self.run}
 
     def n_chains(self, name):
         """MCMC chains per split of a method (methods.<M>.chains, default 1)."""
@@ -958,18 +954,9 @@ class Study:
         return self.first_seed if mode == "per_size" else seed
 
     def estimator_sources(self, name):
-        """Source files whose edit reruns a method's jobs: the estimator's module, its private helpers
-        (``_<module>_*.py``, e.g. _bsr_kernels.py for bsr.py) and the job logic (:data:`JOB_MODULES`)."""
-        import importlib.util
-
-        modname = self.method(name)["estimator"].split(":")[0]
-        spec = importlib.util.find_spec(modname)
-        if spec is None or spec.origin is None:
-            raise ValueError(f"config key 'methods.{name}.estimator': module {modname!r} not found")
-        origin = Path(spec.origin)
-        helpers = sorted(origin.parent.glob(f"_{origin.stem}_*.py"))
-        jobs = [Path(importlib.util.find_spec(m).origin) for m in JOB_MODULES]
-        return [str(p) for p in [origin, *helpers, *jobs]]
+        """Source files whose edit reruns a method's jobs: its estimator's module, the job logic and every module
+        of the package they import (:meth:`bsrbench.methods.Method.source_files`)."""
+        return self.registry()[name].source_files()
 
     @property
     def trace_method(self):

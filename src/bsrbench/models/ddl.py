@@ -47,6 +47,8 @@ from .reference import (
 from .scaling import InputScaler
 from .sr import _normalize_rows
 
+__all__ = ["DDL"]
+
 
 def _block_scale(A):
     """Mean and scale that give the centred block unit energy per row on average."""
@@ -128,6 +130,9 @@ class DDL(RegressorMixin, BaseEstimator):
     side (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
     non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "DDL"
 
     _parameter_constraints = {
         "n_components": [COUNT],

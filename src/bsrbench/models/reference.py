@@ -32,6 +32,8 @@ from .scaling import (
     output_bounds,
 )
 
+__all__ = ["NearestNeighbourRegressor", "RidgeRegressor"]
+
 # --------------------------------------------------------------------------------------------------------
 # shared helpers
 

@@ -39,6 +39,8 @@ from .reference import (
     check_params,
 )
 
+__all__ = ["RVM"]
+
 
 def _posterior(G, R, alpha, beta):
     """Posterior of the weights for the active set.
@@ -112,6 +114,9 @@ class RVM(RegressorMixin, BaseEstimator):
     n_iter_ : int
         Iterations run; ``converged_`` tells whether ``tol`` was reached.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "RVM"
 
     _parameter_constraints = {
         "width_scale": [POSITIVE],

@@ -47,6 +47,8 @@ from .reference import (
 )
 from .scaling import INPUT_SCALINGS, InputScaler
 
+__all__ = ["KernelRidgeRBF", "GaussianProcessARD", "RandomForest", "MLP"]
+
 
 class _ScaledRegressor(RegressorMixin, BaseEstimator):
     """Shared fit/predict: validate, scale inputs, fit ``self._make(X, Y)`` on (optionally standardized)

@@ -36,6 +36,8 @@ from .reference import (
     check_params,
 )
 
+__all__ = ["SR"]
+
 
 def _normalize_rows(X, how):
     if how == "none":
@@ -109,6 +111,9 @@ class SR(RegressorMixin, BaseEstimator):
     (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
     non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "SR"
 
     _predict_time_params = ("alpha",)
 

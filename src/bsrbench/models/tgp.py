@@ -42,6 +42,8 @@ from .reference import (
 )
 from .scaling import INPUT_SCALINGS
 
+__all__ = ["TGP"]
+
 _FROM_PARAMS = object()
 
 
@@ -93,6 +95,9 @@ class TGP(RegressorMixin, BaseEstimator):
     range of each output widened by half its width on each side (:func:`bsrbench.models.scaling.output_bounds`).
     Raises ``InputError`` for a bad parameter or a non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "TGP"
 
     _predict_time_params = ("n_neighbors", "init")
     _parameter_constraints = {
