@@ -122,3 +122,23 @@ def job_preload():
     exports an estimator."""
     models = sorted(set(model_classes().values()))
     return sources.closure([JOB_ENTRY, *models])
+
+
+#: The configuration files of a source checkout.
+CONFIG = Path(__file__).resolve().parents[2] / "config"
+
+
+def configured(study=None, folder=CONFIG):
+    """The registry of the methods run by ``config/config.yaml``, or by ``config/<study>.yaml`` read over it (as
+    ``--configfile`` does): the methods of a published study, for tables made without its workflow."""
+    import yaml
+
+    methods, run = {}, []
+    for path in [Path(folder) / "config.yaml", Path(folder) / f"{study}.yaml"][: 2 if study else 1]:
+        if not path.is_file():
+            continue
+        data = yaml.safe_load(path.read_text()) or {}
+        for name, entry in (data.get("methods") or {}).items():
+            methods[name] = {**methods.get(name, {}), **(entry or {})}
+        run = data.get("run", run)
+    return registry(methods, run)
