@@ -24,7 +24,6 @@ from numbers import Integral, Real
 
 import numpy as np
 from scipy.optimize import minimize
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.ensemble import RandomForestRegressor
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
@@ -38,9 +37,9 @@ from .reference import (
     COUNT,
     NON_NEGATIVE,
     POSITIVE,
+    PoseRegressor,
     _format_output,
     _median_distance,
-    _regressor_tags,
     _validate_fit,
     _validate_predict,
     check_params,
@@ -50,14 +49,11 @@ from .scaling import INPUT_SCALINGS, InputScaler
 __all__ = ["KernelRidgeRBF", "GaussianProcessARD", "RandomForest", "MLP"]
 
 
-class _ScaledRegressor(RegressorMixin, BaseEstimator):
+class _ScaledRegressor(PoseRegressor):
     """Shared fit/predict: validate, scale inputs, fit ``self._make(X, Y)`` on (optionally standardized)
     outputs, clip predictions."""
 
     _standardize_y = False
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
@@ -107,10 +103,6 @@ class KernelRidgeRBF(_ScaledRegressor):
         self.alpha = alpha
         self.gamma_scale = gamma_scale
         self.input_scaling = input_scaling
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
 
     def _make(self, Xs, Y):
         self.gamma_ = float(self.gamma_scale) / _median_distance(Xs) ** 2
@@ -178,10 +170,6 @@ class GaussianProcessARD(_ScaledRegressor):
         self.input_scaling = input_scaling
         self.random_state = random_state
 
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
-
     def _make(self, Xs, Y):
         m = _median_distance(Xs)
         kernel = ConstantKernel(1.0, (1e-3, 1e3)) * RBF(
@@ -236,10 +224,6 @@ class RandomForest(_ScaledRegressor):
         self.max_features = max_features
         self.min_samples_leaf = min_samples_leaf
         self.random_state = random_state
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
 
     def _make(self, Xs, Y):
         return RandomForestRegressor(

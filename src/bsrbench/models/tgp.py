@@ -24,17 +24,16 @@ for all test points at once by batched LAPACK calls.
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import StrOptions
 
 from ..errors import InputError
 from .reference import (
     COUNT,
     POSITIVE,
+    PoseRegressor,
     RidgeRegressor,
     _format_output,
     _median_distance,
-    _regressor_tags,
     _sq_dists,
     _validate_fit,
     _validate_predict,
@@ -65,7 +64,7 @@ def _kld_objective(y, Ytr, Ainv, u, eta, c, inv_w2):
     return f, grad
 
 
-class TGP(RegressorMixin, BaseEstimator):
+class TGP(PoseRegressor):
     """Twin Gaussian process regression (KL-divergence form, Bo & Sminchisescu 2010).
 
     Parameters
@@ -133,9 +132,6 @@ class TGP(RegressorMixin, BaseEstimator):
         self.input_scaling = input_scaling
         self.max_iter = max_iter
         self.tol = tol
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
 
     def _check_k(self, k, n):
         check_params(self, {"n_neighbors": k})
