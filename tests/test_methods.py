@@ -66,6 +66,13 @@ def test_paper_names_come_from_the_classes_and_the_class_map_from_all():
     assert set(methods.model_classes().values()) <= set(preload)
 
 
+def test_every_column_of_the_paper_has_one_class():
+    from bsrbench.paper import PAPER_METHODS
+
+    names = [methods.paper_name(f"{m}:{c}") for c, m in methods.model_classes().items()]
+    assert sorted(n for n in names if n) == sorted(PAPER_METHODS)
+
+
 def test_the_published_studys_registry_is_its_configuration_over_the_default():
     reg = configured("paper")
     assert list(reg)[:5] == ["RVM", "TGP", "SR", "DDL", "PM"]

@@ -921,6 +921,11 @@ class Study:
             return None
         return {"level": float(level), "params": dict(self.method(name).get("cv_params") or {})}
 
+    def paper_names(self):
+        """{method: the paper's name of it (a column of Tables I-II) or None} for every method run."""
+        methods = self.registry()
+        return {m: methods[m].paper_name for m in self.run}
+
     def method_groups(self):
         """{method: its table block, "paper" or "today"} for every method run (methods.<M>.group)."""
         methods = self.registry()

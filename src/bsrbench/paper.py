@@ -17,3 +17,6 @@ PAPER_TABLES = {
 }
 #: The paper's eight activities as (table caption, activity), in the tables' order.
 PAPER_ACTIVITIES = [(f"Table {t}", a) for t, names in PAPER_TABLES.items() for a in names]
+#: The columns of the paper's tables, in its order: the ``paper_name`` of the estimator classes that reproduce them
+#: (:attr:`bsrbench.methods.Method.paper_name`).
+PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")

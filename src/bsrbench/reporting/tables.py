@@ -13,7 +13,7 @@ import pandas as pd
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
-from ..paper import PAPER_TABLES
+from ..paper import PAPER_METHODS, PAPER_TABLES  # noqa: F401 (PAPER_METHODS: report.py's name)
 from ..results import (  # noqa: F401 (the aggregate table's functions, under the names the scripts use)
     KEY_COLUMNS,
     aggregate_files,
@@ -23,8 +23,6 @@ from ..results import (  # noqa: F401 (the aggregate table's functions, under th
     write_csv,
 )
 
-#: Methods of the paper's tables (their labels), in the paper's column order.
-PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 #: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
 NO_ROW = {
     "none": "no data set of this source",
