@@ -165,7 +165,10 @@ def test_a_toy_method_is_in_the_aggregate_the_tables_and_the_figures(toy_run):
     table = (toy_run / "reports/toy/tables/tableI_hsc.tex").read_text()
     assert "Mean pose" in table and "today's baselines" in table  # its group's block of Table I
     assert "Mean pose" in (toy_run / "reports/toy/tables/today.tex").read_text()
-    assert "Toy" in set(pd.read_csv(toy_run / "reports/toy/tables/uncertainty.csv")["method"])
+    # the paired comparisons behind the tables' marks; the uncertainty table lists only methods with intervals
+    comparisons = pd.read_csv(toy_run / "results/toy/aggregate/comparisons.csv")
+    assert ("Toy", "NN1") in set(zip(comparisons["method"], comparisons["versus"]))
+    assert "Toy" not in set(pd.read_csv(toy_run / "reports/toy/tables/uncertainty.csv")["method"])
     text = subprocess.run(
         ["pdftotext", str(toy_run / "reports/toy/figures/error_vs_ntrain_hsc.pdf"), "-"],
         capture_output=True,
