@@ -411,6 +411,7 @@ def test_cmu_trials_resolve_to_the_download_folder_and_defaults_are_filled_in():
 
 
 def test_cv_seed_grid_table_methods_and_data_status():
+    import bsrbench
     from bsrbench.models import reference
 
     study = _study(**{"cv.mode": "per_size", "methods.RVM.grid": None})
@@ -425,20 +426,21 @@ def test_cv_seed_grid_table_methods_and_data_status():
     assert status["Acrobatics"] == "acrobatics"  # studied
     assert status["Golf"]["kind"] == "here"  # data here, not studied
     assert status["Navigate"]["kind"] == "none"  # no data set of hsc for it
-    code = study.estimator_sources("PM")
-    assert [Path(p).name for p in code] == [
-        "bsr.py",
-        "_bsr_kernels.py",
+    # the estimator's module, the sampler kernels it imports and the job logic with its imports; no other model
+    code = [
+        Path(p).relative_to(Path(bsrbench.__file__).parent).as_posix()
+        for p in study.estimator_sources("PM")
+    ]
+    for f in (
+        "models/bsr.py",
+        "models/_bsr_kernels.py",
+        "jobs.py",
         "runs.py",
         "splits.py",
-        "estimators.py",
-        "io.py",
-        "poses.py",
         "metrics.py",
-        "scores.py",
-        "kinematics.py",
-        "tuning.py",
-    ]
+    ):
+        assert f in code
+    assert "models/rvm.py" not in code and "config.py" not in code and len(code) == len(set(code))
 
 
 def test_report_arg_reads_snakemakes_report_option():
