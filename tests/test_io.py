@@ -7,20 +7,8 @@ from bsrbench.errors import DataFileError
 from bsrbench.io import load_features
 
 
-def _synthetic_features(tmp_path, n=200):
-    rng = np.random.default_rng(1)
-    X = rng.normal(size=(n, 6))
-    Y = np.column_stack(
-        [X[:, :3] @ rng.normal(size=(3, 4)) * 10, np.rad2deg(np.arctan2(X[:, 4], X[:, 5]))]
-    )
-    Y = Y[:, [0, 1, 4, 2, 3]]  # heading in column 2, as in the data
-    path = tmp_path / "f.npz"
-    np.savez(path, X=X, Y=Y, frames=np.arange(n), angle_names=np.array([f"a{i}" for i in range(5)]))
-    return path
-
-
-def test_load_features_checks_the_file(tmp_path):
-    f = load_features(_synthetic_features(tmp_path))
+def test_load_features_checks_the_file(tmp_path, synthetic_features):
+    f = load_features(synthetic_features(tmp_path))
     assert f["X"].shape == (200, 6) and f["Y"].shape == (200, 5) and len(f["angle_names"]) == 5
     with pytest.raises(DataFileError, match="does not exist"):
         load_features(tmp_path / "none.npz")
@@ -33,7 +21,7 @@ def test_load_features_checks_the_file(tmp_path):
     with pytest.raises(DataFileError, match=r"non-finite value\(s\), first at row 0"):
         load_features(nan)
     # a truncated file (an interrupted copy): numpy raises zipfile.BadZipFile, which used to reach the job's log
-    good = _synthetic_features(tmp_path)
+    good = synthetic_features(tmp_path)
     cut = tmp_path / "cut.npz"
     cut.write_bytes(good.read_bytes()[:100])
     with pytest.raises(DataFileError, match=r"cut\.npz.*cannot read as \.npz.*delete it and rerun"):

@@ -30,20 +30,8 @@ def test_inverse_std_of_heading_matches_monte_carlo():
     assert sd[0, 2] == pytest.approx(np.std(heading), rel=0.02)
 
 
-def _synthetic_features(tmp_path, n=200):
-    rng = np.random.default_rng(1)
-    X = rng.normal(size=(n, 6))
-    Y = np.column_stack(
-        [X[:, :3] @ rng.normal(size=(3, 4)) * 10, np.rad2deg(np.arctan2(X[:, 4], X[:, 5]))]
-    )
-    Y = Y[:, [0, 1, 4, 2, 3]]  # heading in column 2, as in the data
-    path = tmp_path / "f.npz"
-    np.savez(path, X=X, Y=Y, frames=np.arange(n), angle_names=np.array([f"a{i}" for i in range(5)]))
-    return path
-
-
-def test_run_job_scores_in_degrees_after_undoing_the_transform(tmp_path):
-    feats = load_features(_synthetic_features(tmp_path))
+def test_run_job_scores_in_degrees_after_undoing_the_transform(tmp_path, synthetic_features):
+    feats = load_features(synthetic_features(tmp_path))
     spec = JobSpec("syn", "act", "NN1", 50, 0, min_test=50, paper_activity="Act")
     row, arrays = run_job(
         spec, feats, estimator=f"{REF}:NearestNeighbourRegressor", params={"n_neighbors": 1}
@@ -63,8 +51,8 @@ def test_run_job_scores_in_degrees_after_undoing_the_transform(tmp_path):
     assert json.loads((tmp_path / "r.json").read_text())["error"] == row["error"]
 
 
-def test_cross_validate_picks_from_the_grid_and_keeps_fixed_params(tmp_path):
-    feats = load_features(_synthetic_features(tmp_path))
+def test_cross_validate_picks_from_the_grid_and_keeps_fixed_params(tmp_path, synthetic_features):
+    feats = load_features(synthetic_features(tmp_path))
     spec = JobSpec("syn", "act", "Ridge", 60, 0, min_test=50)
     res = cross_validate(
         spec,
