@@ -170,7 +170,7 @@ def phases(features, activity, n_train, repeats):
             Y_true, Y_pred = split.Y[split.test], split.transform.inverse(Z)
             metrics.mean_angle_error(Y_true, Y_pred)
             t.append(time.perf_counter())
-            metrics.extra_scores(Y_true, Y_pred, source="NN1", skeleton=split.skeleton)
+            runs.extra_scores(Y_true, Y_pred, source="NN1", skeleton=split.skeleton)
             t.append(time.perf_counter())
             row, arrays = runs._score(
                 spec,

@@ -411,6 +411,7 @@ def test_cmu_trials_resolve_to_the_download_folder_and_defaults_are_filled_in():
 
 
 def test_cv_seed_grid_table_methods_and_data_status():
+    import bsrbench
     from bsrbench.models import reference
 
     study = _study(**{"cv.mode": "per_size", "methods.RVM.grid": None})
@@ -425,24 +426,25 @@ def test_cv_seed_grid_table_methods_and_data_status():
     assert status["Acrobatics"] == "acrobatics"  # studied
     assert status["Golf"]["kind"] == "here"  # data here, not studied
     assert status["Navigate"]["kind"] == "none"  # no data set of hsc for it
-    code = study.estimator_sources("PM")
-    assert [Path(p).name for p in code] == [
-        "bsr.py",
-        "_bsr_kernels.py",
+    # the estimator's module, the sampler kernels it imports and the job logic with its imports; no other model
+    code = [
+        Path(p).relative_to(Path(bsrbench.__file__).parent).as_posix()
+        for p in study.estimator_sources("PM")
+    ]
+    for f in (
+        "models/bsr.py",
+        "models/_bsr_kernels.py",
+        "jobs.py",
         "runs.py",
         "splits.py",
-        "estimators.py",
-        "io.py",
-        "poses.py",
         "metrics.py",
-        "scores.py",
-        "kinematics.py",
-        "tuning.py",
-    ]
+    ):
+        assert f in code
+    assert "models/rvm.py" not in code and "config.py" not in code and len(code) == len(set(code))
 
 
 def test_report_arg_reads_snakemakes_report_option():
-    from bsrbench.config import report_arg
+    from bsrbench.results import report_arg
 
     assert report_arg(["snakemake", "--cores", "2"]) is None
     assert report_arg(["snakemake", "--report", "r/x.html"]) == "r/x.html"
@@ -456,8 +458,8 @@ def test_report_checks_and_the_design_change_message(tmp_path, monkeypatch):
     message names what changed; a table of the configured design passes both."""
     import pandas as pd
 
-    from bsrbench.config import KEY_COLUMNS, check_report_is_current, design_change_message
     from bsrbench.errors import DataFileError
+    from bsrbench.results import KEY_COLUMNS, check_report_is_current, design_change_message
 
     monkeypatch.chdir(tmp_path)
     study = _study(

@@ -1,4 +1,4 @@
-"""Proper scores, PIT values, split-conformal radius and the job layer's extra_scores, against hand computations."""
+"""Proper scores, PIT values, split-conformal radius, against hand computations."""
 
 import math
 
@@ -9,8 +9,6 @@ from scipy.stats import kstest, norm
 
 from bsrbench import scores as S
 from bsrbench.errors import InputError
-from bsrbench.kinematics import hsc_pose_skeleton, mpjpe, pa_mpjpe
-from bsrbench.metrics import extra_scores
 
 
 def _crps_by_integration(y, mu, sigma):
@@ -131,33 +129,6 @@ def test_no_std_gives_none_and_non_finite_predictions_are_rejected():
         S.proper_scores(y, y, samples=draws)
     # a zero std for an exactly predicted (constant) angle is floored, not an infinite score
     assert math.isfinite(S.gaussian_nlpd(y, y, np.zeros_like(y)))
-
-
-def test_extra_scores_for_the_job_layer():
-    ps = hsc_pose_skeleton()
-    rng = np.random.default_rng(7)
-    y = rng.uniform(-30, 30, size=(8, 57))
-    p = y + rng.normal(scale=4, size=y.shape)
-    sd = np.full_like(y, 4.0)
-    out = extra_scores(y, p, source="hsc", skeleton=ps)
-    assert out["mpjpe_mm"] == pytest.approx(mpjpe(y, p, ps))
-    assert out["pa_mpjpe_mm"] == pytest.approx(pa_mpjpe(y, p, ps))
-    assert out["nlpd"] is None and out["crps"] is None and out["scores_from"] is None
-    g = extra_scores(y, p, source="hsc", skeleton=ps, std=sd)
-    assert g["nlpd"] == pytest.approx(-norm.logpdf(p - y, 0, 4).mean())
-    assert g["scores_from"] == "gaussian" and g["crps"] > 0
-    draws = p[:, None] + 4 * rng.normal(size=(8, 50, 57))
-    s = extra_scores(y, p, source="hsc", skeleton=ps, std=sd, samples=draws)
-    assert s["scores_from"] == "samples" and s["crps"] == pytest.approx(S.sample_crps(y, draws))
-    # the NLPD takes the std when given (the draws' exact moments), the draws' moment match otherwise
-    assert s["nlpd"] == pytest.approx(g["nlpd"])
-    m = extra_scores(y, p, source="hsc", skeleton=ps, samples=draws)
-    assert m["nlpd"] == pytest.approx(S.sample_nlpd(y, draws, p)) and m["nlpd"] != s["nlpd"]
-    p[3, 10] = np.nan
-    with pytest.raises(InputError, match=r"hsc \(hsc\): y_pred contains NaN at row 3, column 10"):
-        extra_scores(y, p, source="hsc", skeleton=ps, std=sd)
-    with pytest.raises(InputError, match=r"the skeleton expects 57"):
-        extra_scores(y[:, :56], y[:, :56], source="hsc", skeleton=ps)
 
 
 def test_split_conformal_of_a_fitted_model_covers_new_frames():

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from bsrbench.paper import PAPER_TABLES as PAPER_TABLE_ROWS
+
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
 STUDY_RULES = {
@@ -26,16 +28,6 @@ STUDY_RULES = {
     "plot_subjective",
     "report_pdf",
     "all",
-}
-PAPER_TABLE_ROWS = {
-    "I": ["Acrobatics", "Navigate", "Golf"],
-    "II": [
-        "Throw and catch football",
-        "Michael jackson styled motions",
-        "Kick soccer ball",
-        "Run",
-        "Walk",
-    ],
 }
 
 

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .errors import InputError
+from .metrics import wrap_degrees
 from .mocap.skeleton import Skeleton, euler_matrix, forward_kinematics
 
 #: Joints of ``hierarchy2.bvh`` (mzolfaghari/3D-human-pose-estimation) in file order, with parent and offset.
@@ -395,7 +396,7 @@ def load_angle_mapping(path):
 
 def wrapped_diff(a, b):
     """``a - b`` in degrees wrapped to (-180, 180]."""
-    d = (np.asarray(a, dtype=float) - np.asarray(b, dtype=float) + 180.0) % 360.0 - 180.0
+    d = wrap_degrees(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
     return np.where(d == -180.0, 180.0, d)
 
 

@@ -21,36 +21,14 @@ from types import MappingProxyType
 
 import yaml
 
-from .errors import DataFileError, InputError
+from .errors import InputError
+from .methods import registry
+from .paper import PAPER_ACTIVITIES
+from .results import KEY_COLUMNS, design_changes, study_of  # noqa: F401 (names of the aggregate table's checks)
 
 #: The JSON schemas of the configuration (a source checkout; the Snakefile passes its own folder).
 SCHEMAS = Path(__file__).resolve().parents[2] / "workflow" / "schemas"
-#: The columns that identify a job in the aggregate table.
-KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
 MOTION_FORMATS = ("bvh", "amc")
-#: The modules of a job's logic: an edit of one reruns the fit and CV jobs.
-JOB_MODULES = (
-    "bsrbench.runs",
-    "bsrbench.splits",
-    "bsrbench.estimators",
-    "bsrbench.io",
-    "bsrbench.poses",
-    "bsrbench.metrics",
-    "bsrbench.scores",
-    "bsrbench.kinematics",
-    "bsrbench.tuning",
-)
-#: The paper's eight activities (Table I: Acrobatics, Navigate, Golf; Table II: the other five).
-PAPER_ACTIVITIES = [
-    ("Table I", "Acrobatics"),
-    ("Table I", "Navigate"),
-    ("Table I", "Golf"),
-    ("Table II", "Throw and catch football"),
-    ("Table II", "Michael jackson styled motions"),
-    ("Table II", "Kick soccer ball"),
-    ("Table II", "Run"),
-    ("Table II", "Walk"),
-]
 
 
 # ------------------------------------------------------------------------------------------- command line
@@ -883,7 +861,7 @@ class Study:
 
     @property
     def design(self):
-        """The configured jobs, as the report rules check the aggregate table against (:func:`check_design`)."""
+        """The configured jobs, as the report rules check the aggregate table against (:func:`bsrbench.results.check_design`)."""
         return {
             "protocols": self.protocols,
             "pairs": [[s, a] for s, a in self.pairs],
@@ -923,9 +901,15 @@ class Study:
         """The configuration of method ``name`` (estimator, label, params, cv_params, grid, chains)."""
         return self.config["methods"][name]
 
+    def registry(self):
+        """{name: :class:`bsrbench.methods.Method`} of every configured method (run ones first, in table order)."""
+        names = self.run + [m for m in self.config["methods"] if m not in self.run]
+        return registry(self.config["methods"], names)
+
     def method_labels(self):
         """{method: label} for every method run, in table order."""
-        return {m: self.method(m).get("label", m) for m in self.run}
+        methods = self.registry()
+        return {m: methods[m].label for m in self.run}
 
     def conformal(self, name):
         """The split-conformal settings of a method's fits, ``{"level", "params"}``, or None (``conformal_level``
@@ -937,9 +921,15 @@ class Study:
             return None
         return {"level": float(level), "params": dict(self.method(name).get("cv_params") or {})}
 
+    def paper_names(self):
+        """{method: the paper's name of it (a column of Tables I-II) or None} for every method run."""
+        methods = self.registry()
+        return {m: methods[m].paper_name for m in self.run}
+
     def method_groups(self):
         """{method: its table block, "paper" or "today"} for every method run (methods.<M>.group)."""
-        return {m: self.method(m).get("group") or "paper" for m in self.run}
+        methods = self.registry()
+        return {m: methods[m].group for m in self.run}
 
     def n_chains(self, name):
         """MCMC chains per split of a method (methods.<M>.chains, default 1)."""
@@ -969,18 +959,9 @@ class Study:
         return self.first_seed if mode == "per_size" else seed
 
     def estimator_sources(self, name):
-        """Source files whose edit reruns a method's jobs: the estimator's module, its private helpers
-        (``_<module>_*.py``, e.g. _bsr_kernels.py for bsr.py) and the job logic (:data:`JOB_MODULES`)."""
-        import importlib.util
-
-        modname = self.method(name)["estimator"].split(":")[0]
-        spec = importlib.util.find_spec(modname)
-        if spec is None or spec.origin is None:
-            raise ValueError(f"config key 'methods.{name}.estimator': module {modname!r} not found")
-        origin = Path(spec.origin)
-        helpers = sorted(origin.parent.glob(f"_{origin.stem}_*.py"))
-        jobs = [Path(importlib.util.find_spec(m).origin) for m in JOB_MODULES]
-        return [str(p) for p in [origin, *helpers, *jobs]]
+        """Source files whose edit reruns a method's jobs: its estimator's module, the job logic and every module
+        of the package they import (:meth:`bsrbench.methods.Method.source_files`)."""
+        return self.registry()[name].source_files()
 
     @property
     def trace_method(self):
@@ -1089,151 +1070,3 @@ def load_study(data, *, schema_dir=SCHEMAS, cwd=".", validate=True):
         validate_config(config, Path(schema_dir) / "config.schema.yaml", "configuration")
     skipped = _check_study(config, data.entries, cwd)
     return Study(config=config, data=data, skipped=MappingProxyType(skipped))
-
-
-# ----------------------------------------------------------------------------------- the aggregate table
-def design_values(design, column):
-    """The configured values of one key column (sorted), from a :func:`check_design` design."""
-    if column == "source":
-        return sorted({s for s, _ in design["pairs"]})
-    if column == "activity":
-        return sorted({a for _, a in design["pairs"]})
-    key = {"protocol": "protocols", "method": "methods", "seed": "seeds"}.get(column, column)
-    return sorted(design[key])
-
-
-def design_changes(df, design):
-    """How the jobs of the aggregate table ``df`` differ from the configured study ``design`` (see
-    :func:`check_design`): ``(missing, extra, differences)``, the number of configured jobs without a row, the
-    number of rows of jobs not configured, and one sentence per key column whose values differ ("n_train: the
-    table has [30, 100], the configuration [30, 60]"), or, when every value is there but a job is missing, the
-    first missing job. ``(0, 0, [])`` when ``df`` is exactly the configured study. ``df`` needs the key columns
-    only (:data:`KEY_COLUMNS`).
-    """
-    skipped = {(p, s, a, int(n)) for p, s, a, n in design.get("skipped", [])}
-    wanted = {
-        (p, s, a, m, int(n), int(k))
-        for p in design["protocols"]
-        for s, a in design["pairs"]
-        for m in design["methods"]
-        for n in design["n_train"]
-        for k in design["seeds"]
-        if (p, s, a, int(n)) not in skipped
-    }
-    have = {
-        (p, s, a, m, int(n), int(k))
-        for p, s, a, m, n, k in df[KEY_COLUMNS].itertuples(index=False, name=None)
-    }
-    if wanted == have:
-        return 0, 0, []
-    differ = []
-    for i, col in enumerate(KEY_COLUMNS):
-        got = sorted({r[i] for r in have})
-        conf = design_values(design, col)
-        if got != conf:
-            differ.append(f"{col}: the table has {got}, the configuration {conf}")
-    if not differ:
-        missing = sorted(wanted - have)
-        differ.append(f"e.g. no row for {dict(zip(KEY_COLUMNS, missing[0]))}" if missing else "")
-    return len(wanted - have), len(have - wanted), differ
-
-
-def study_of(path):
-    """The study name of an aggregate table at ``results/{study}/aggregate/results.csv``; None for another path."""
-    parts = Path(path).parts
-    if (
-        len(parts) >= 4
-        and parts[-4:-3] == ("results",)
-        and parts[-2:] == ("aggregate", "results.csv")
-    ):
-        return parts[-3]
-    return None
-
-
-def check_design(df, design, *, path="results/{study}/aggregate/results.csv"):
-    """Raise DataFileError unless ``df`` has exactly one row per job of the configured study.
-
-    The jobs are every (protocol, source, activity, method, n_train, seed) of ``design`` (a dict with lists
-    ``protocols``, ``pairs`` ([source, activity]), ``methods``, ``n_train``, ``seeds``, and optionally ``skipped``:
-    [protocol, source, activity, n_train] cells not run because too few test frames remain). A table of another
-    configuration (say, one written before a method was added) must never be reported as this study's. The
-    message names what differs (:func:`design_changes`) and what to do.
-    """
-    missing, extra, differ = design_changes(df, design)
-    if not (missing or extra):
-        return
-    study = study_of(path)
-    name = f"study {study!r}" if study else "the study"
-    folder = f"results/{study}/" if study else "the study's results folder"
-    raise DataFileError(
-        path,
-        f"does not match the configuration: {missing} configured job(s) without a row, "
-        f"{extra} row(s) of jobs not configured; "
-        + "; ".join(differ)
-        + f". Expected exactly the configured study: the design of {name} has changed since the table was "
-        f"written. Run the study first, with the same --configfile/--config options (Snakemake reruns what "
-        f"changed; add --forcerun aggregate if it finds nothing to do); or give the new design a study name of its "
-        f"own (--config study=NAME) to keep the old results as they are; or delete {folder} to start afresh",
-    )
-
-
-def report_arg(argv):
-    """The file of `--report FILE` / `--report=FILE` in ``argv``: None without --report, Snakemake's default
-    report.html when no file follows."""
-    for k, a in enumerate(argv):
-        if a.startswith("--report="):
-            return a.split("=", 1)[1]
-        if a == "--report":
-            nxt = argv[k + 1] if k + 1 < len(argv) else ""
-            return nxt if nxt and not nxt.startswith("-") else "report.html"
-    return None
-
-
-def check_report_is_current(study, argv):
-    """On a `snakemake --report` command line: refuse an aggregate table of another design, and an HTML file
-    in another study's report folder. `snakemake --report` embeds the outputs as they are on disk without
-    checking that they are current, and a Snakefile gets no flag saying that a report is being built."""
-    html = report_arg(argv)
-    if html is None:
-        return
-    target, reports = Path(html).resolve(), Path("reports").resolve()
-    if target.is_relative_to(reports) and not target.is_relative_to(Path(study.reports).resolve()):
-        raise ValueError(
-            f"--report {html}: the HTML report of study {study.name!r} goes to its report folder "
-            f"{study.reports}/ (e.g. --report {study.reports}/report.html), not to a folder of reports/ shared "
-            f"with or owned by another study"
-        )
-    aggregate = Path(f"{study.results}/aggregate/results.csv")
-    if aggregate.exists():
-        from .reporting.tables import read_results
-
-        read_results(aggregate, design=study.design)
-
-
-def design_change_message(study):
-    """A message naming what changed and what to do when the study's aggregate table holds another design than
-    the configured one (a method, size, seed, protocol or activity added or removed under the same study name);
-    None otherwise, or when the table cannot be read (the aggregate and report rules handle that)."""
-    import pandas as pd
-
-    aggregate = Path(f"{study.results}/aggregate/results.csv")
-    if not aggregate.is_file():
-        return None
-    try:
-        missing, extra, differ = design_changes(
-            pd.read_csv(aggregate, usecols=KEY_COLUMNS), study.design
-        )
-    except (OSError, UnicodeDecodeError, ValueError, TypeError):
-        return None  # unreadable or damaged (pandas' parser errors are ValueErrors)
-    if not (missing or extra):
-        return None
-    name, results, reports = study.name, study.results, study.reports
-    return (
-        f"study {name!r}: the configuration differs from the design of its results in {results}/ ({aggregate}: "
-        f"{'; '.join(differ)}; {missing} job(s) to add, {extra} no longer configured). Snakemake reruns what "
-        f"this needs and rebuilds the aggregate table and the report of study {name!r} for the configuration as "
-        f"it is now, replacing the old report (fits no longer configured stay unused in {results}/fit/). To keep "
-        f"the old study's table and report instead, run this design under a study name of its own (--config "
-        f"study=NAME, or the key 'study' of your configuration file); to start study {name!r} afresh, delete "
-        f"{results}/ and {reports}/."
-    )

@@ -10,27 +10,23 @@ either way. Heavy imports (scikit-learn, numba) happen inside the functions.
 import sys
 from types import SimpleNamespace
 
-#: Modules a job server imports once before forking the jobs, running their ``warm_up()`` if they have one
-#: (:mod:`bsrbench.jobserver`).
-PRELOAD = (
-    "numpy",
-    "scipy.stats",
-    "sklearn.base",
-    "bsrbench.io",
-    "bsrbench.splits",
-    "bsrbench.runs",
-    "bsrbench.tuning",
-    "bsrbench.metrics",
-    "bsrbench.scores",
-    "bsrbench.kinematics",
-    "bsrbench.models.bsr",
-    "bsrbench.models.reference",
-    "bsrbench.models.rvm",
-    "bsrbench.models.tgp",
-    "bsrbench.models.sr",
-    "bsrbench.models.ddl",
-    "arviz",  # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
-)
+
+def __getattr__(name):
+    """``PRELOAD``: the modules a job server imports once before forking the jobs, running their ``warm_up()`` if
+    they have one (:mod:`bsrbench.jobserver`): the job logic and the model modules, derived from the package's
+    import graph (:func:`bsrbench.methods.job_preload`) when asked for, since reading the graph takes a while."""
+    if name == "PRELOAD":
+        from .methods import job_preload
+
+        return (
+            "numpy",
+            "scipy.stats",
+            "sklearn.base",
+            *job_preload(),
+            # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
+            "arviz",
+        )
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _ns(d):

@@ -13,12 +13,14 @@ from importlib import metadata
 
 import numpy as np
 
+from . import kinematics, scores
 from .convergence import convergence_summary
 from .errors import InputError
 from .estimators import make_estimator, supports_std
 from .io import to_builtin
-from .metrics import extra_scores, interval_coverage, mean_angle_error, per_angle_rms
+from .metrics import check_pair, interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
+from .results import row_key
 from .seeds import split_seed
 
 #: Nominal levels of the central predictive intervals whose empirical coverage every job records.
@@ -284,7 +286,7 @@ def _score(
 ):
     """The result row and arrays of a split from its predictions ``Z_mean`` (and ``Z_std``) in the
     transformed pose space; ``samples`` (n, S, 57) and ``weights`` (n, S): posterior predictive draws of the
-    test angles, scored in place of the Gaussian (:func:`bsrbench.metrics.extra_scores`)."""
+    test angles, scored in place of the Gaussian (:func:`extra_scores`)."""
     test, transform = split.test, split.transform
     Y_true = split.Y[test]
     Z_mean = np.asarray(Z_mean, dtype=float)
@@ -295,14 +297,7 @@ def _score(
     Y_pred = transform.inverse(Z_mean)
     rms = per_angle_rms(Y_true, Y_pred)
     row = {
-        "source": spec.source,
-        "activity": spec.activity,
-        "paper_activity": spec.paper_activity or "",
-        "method": spec.method,
-        "n_train": int(spec.n_train),
-        "seed": int(spec.seed),
-        "protocol": spec.protocol,
-        "pose_transform": spec.pose_transform,
+        **row_key(spec),
         "cv": cv_mode,
         "estimator": estimator,
         "params": to_builtin(dict(params or {})),
@@ -356,6 +351,51 @@ def _score(
     else:
         row["conformal_level"] = row["conformal_coverage"] = None
     return to_builtin(row), arrays
+
+
+def extra_scores(
+    y_true_angles, y_pred_angles, *, source, skeleton, std=None, samples=None, weights=None
+):
+    """Joint-position errors and proper scores of one test set, for its result row.
+
+    ``y_true_angles``, ``y_pred_angles`` (n, 57): true and predicted pose angles (degrees, the original pose
+    space); ``source``: what is scored (e.g. the data source or the method), named in errors; ``skeleton``: its
+    :class:`bsrbench.kinematics.PoseSkeleton` (:func:`bsrbench.kinematics.hsc_pose_skeleton`, or
+    :func:`bsrbench.kinematics.mocap_pose_skeleton` of the activity's first trial file), or None for angles of
+    no known skeleton (then MPJPE and PA-MPJPE are None); ``std`` (n, 57): the
+    predictive std in the same space, if the method gives one; ``samples`` (n, S, 57): posterior predictive draws
+    of an observed angle in the same space, noise included (:func:`bsrbench.scores.predictive_draws`), if it
+    gives them, with their ``weights`` (n, S) (None: equal); draws take precedence over ``std`` (see
+    :mod:`bsrbench.scores`).
+
+    Returns ``{"mpjpe_mm", "pa_mpjpe_mm", "nlpd", "crps", "scores_from"}``: NLPD, CRPS and ``scores_from``
+    (``"gaussian"`` or ``"samples"``) are None for a method with neither ``std`` nor ``samples``. Non-finite
+    predictions, std or draws raise InputError naming the source and the first bad entry.
+    """
+    if skeleton is None:
+        out = {"mpjpe_mm": None, "pa_mpjpe_mm": None}
+        out.update(
+            scores.proper_scores(
+                y_true_angles, y_pred_angles, std=std, samples=samples, weights=weights, what=source
+            )
+        )
+        return out
+    what = f"{source} ({skeleton.source})"
+    for name, a in (("y_true", y_true_angles), ("y_pred", y_pred_angles)):
+        scores.check_finite(np.asarray(a, dtype=float), name, what)
+    y_true, y_pred = check_pair(y_true_angles, y_pred_angles)
+    if y_true.shape[1] != skeleton.n_angles:
+        raise InputError(
+            f"{what}: rows of {y_true.shape[1]} angles; the skeleton expects {skeleton.n_angles}"
+        )
+    out = {
+        "mpjpe_mm": kinematics.mpjpe(y_true, y_pred, skeleton),
+        "pa_mpjpe_mm": kinematics.pa_mpjpe(y_true, y_pred, skeleton),
+    }
+    out.update(
+        scores.proper_scores(y_true, y_pred, std=std, samples=samples, weights=weights, what=what)
+    )
+    return out
 
 
 # --------------------------------------------------------------------------------------------- MCMC chains

@@ -5,12 +5,9 @@ from pathlib import Path
 
 from snakemake.logging import logger
 
-from bsrbench.config import (
-    check_report_is_current,
-    design_change_message,
-    load_study,
-    report_arg,
-)
+from bsrbench.config import load_study
+from bsrbench.splits import PROTOCOLS
+from bsrbench.results import check_report_is_current, design_change_message, report_arg
 
 STUDY = load_study(
     DATA,
@@ -30,7 +27,7 @@ if workflow.is_main_process and report_arg(sys.argv) is None:
 
 
 wildcard_constraints:
-    protocol="random|contiguous|cross_trial",
+    protocol="|".join(PROTOCOLS),
     source="[a-z0-9_]+",
     activity="[a-z0-9_]+",
     method="[A-Za-z0-9]+",

@@ -4,27 +4,25 @@
 - ``RVM``, ``TGP``, ``SR``, ``DDL``: the paper's baselines.
 - ``NearestNeighbourRegressor``, ``RidgeRegressor``: simple references.
 
-Classes are imported on first use, so importing one model does not load (or JIT-compile) the others.
+- ``KernelRidgeRBF``, ``GaussianProcessARD``, ``RandomForest``, ``MLP``: today's baselines.
+
+Classes are imported on first use, so importing one model does not load (or JIT-compile) the others. The classes
+are those the model modules export in their ``__all__`` (read from the sources, :func:`bsrbench.methods.model_classes`).
 """
 
 import importlib
 
-_WHERE = {
-    "BayesianSR": "bsr",
-    "RVM": "rvm",
-    "TGP": "tgp",
-    "SR": "sr",
-    "DDL": "ddl",
-    "NearestNeighbourRegressor": "reference",
-    "RidgeRegressor": "reference",
-}
+from ..methods import model_classes
+
+#: {class name: its module}
+_WHERE = model_classes()
 
 __all__ = sorted(_WHERE)
 
 
 def __getattr__(name):
     if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+        return getattr(importlib.import_module(_WHERE[name]), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

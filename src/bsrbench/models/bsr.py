@@ -36,6 +36,8 @@ from .scaling import (
     output_bounds,
 )
 
+__all__ = ["BayesianSR"]
+
 logger = logging.getLogger("bsrbench.models.bsr")
 
 _LOG_EVERY = 100
@@ -180,6 +182,9 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         Jitter added to the diagonal of Sigma_w for its Cholesky factor (0 if none was needed).
     fit_seconds_ : float
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "PM"
 
     _predict_time_params = ("n_neighbors",)
 

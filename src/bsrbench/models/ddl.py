@@ -29,7 +29,6 @@ their "dual dictionaries with shared sparse representation" describes in the BSR
 import warnings
 
 import numpy as np
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.decomposition import sparse_encode
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import StrOptions
@@ -38,14 +37,15 @@ from ._ddl_kernels import fista_codes, update_atoms
 from .reference import (
     COUNT,
     POSITIVE,
+    PoseRegressor,
     _format_output,
-    _regressor_tags,
     _validate_fit,
     _validate_predict,
-    check_params,
 )
 from .scaling import InputScaler
 from .sr import _normalize_rows
+
+__all__ = ["DDL"]
 
 
 def _block_scale(A):
@@ -98,7 +98,7 @@ def _coupled_dictionary_learning(Z, n_components, alpha, max_iter, tol, rng):
     return D, C, it
 
 
-class DDL(RegressorMixin, BaseEstimator):
+class DDL(PoseRegressor):
     """Coupled feature/pose dictionaries with shared sparse codes (Yang et al. 2010; Ji et al.).
 
     Parameters
@@ -128,6 +128,9 @@ class DDL(RegressorMixin, BaseEstimator):
     side (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
     non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "DDL"
 
     _parameter_constraints = {
         "n_components": [COUNT],
@@ -161,17 +164,12 @@ class DDL(RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     def __sklearn_tags__(self):
-        tags = _regressor_tags(super().__sklearn_tags__())
+        tags = super().__sklearn_tags__()
         tags.non_deterministic = False
         return tags
 
     def _stack_x(self, X):
         return self.x_scaler_.transform(_normalize_rows(X, self.normalize)) / np.sqrt(X.shape[1])
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
-        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

@@ -32,6 +32,8 @@ from .scaling import (
     output_bounds,
 )
 
+__all__ = ["NearestNeighbourRegressor", "RidgeRegressor"]
+
 # --------------------------------------------------------------------------------------------------------
 # shared helpers
 
@@ -121,10 +123,23 @@ def _regressor_tags(tags):
     return tags
 
 
+class PoseRegressor(RegressorMixin, BaseEstimator):
+    """The base of the study's pose regressors: scikit-learn regressor tags for rows of several outputs (the pose
+    angles), and ``_check_params(n_samples=None)``, which validates the hyper-parameters against the class's
+    ``_parameter_constraints`` and which :meth:`fit` and the study's configuration check (before any job runs)
+    call. A class with more to check (e.g. that N training rows suffice) overrides it. Raises InputError."""
+
+    def __sklearn_tags__(self):
+        return _regressor_tags(super().__sklearn_tags__())
+
+    def _check_params(self, n_samples=None):
+        check_params(self)
+
+
 # --------------------------------------------------------------------------------------------------------
 
 
-class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
+class NearestNeighbourRegressor(PoseRegressor):
     """k-nearest-neighbour regression (Euclidean distance on the features).
 
     With ``n_neighbors=1`` the pose of the closest training frame is returned: a memory-based reference that
@@ -154,9 +169,6 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
     def __init__(self, n_neighbors=1, weights="uniform"):
         self.n_neighbors = n_neighbors
         self.weights = weights
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
 
     def _check_k(self, k, n):
         check_params(self, {"n_neighbors": k})
@@ -200,7 +212,7 @@ class NearestNeighbourRegressor(RegressorMixin, BaseEstimator):
         return _format_output(self, P)
 
 
-class RidgeRegressor(RegressorMixin, BaseEstimator):
+class RidgeRegressor(PoseRegressor):
     """Linear ridge regression of the pose on the features (``sklearn.linear_model.Ridge``).
 
     Inputs are scaled by :class:`bsrbench.models.scaling.InputScaler` (``input_scaling``, default "pooled":
@@ -231,14 +243,6 @@ class RidgeRegressor(RegressorMixin, BaseEstimator):
         self.alpha = alpha
         self.standardize = standardize
         self.input_scaling = input_scaling
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
-        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

@@ -23,21 +23,21 @@ noise precision means a noise variance proportional to each output's variance.
 """
 
 import numpy as np
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import StrOptions
 
 from .reference import (
     BOOLEAN,
     COUNT,
     POSITIVE,
+    PoseRegressor,
     _format_output,
     _median_distance,
-    _regressor_tags,
     _sq_dists,
     _validate_fit,
     _validate_predict,
-    check_params,
 )
+
+__all__ = ["RVM"]
 
 
 def _posterior(G, R, alpha, beta):
@@ -68,7 +68,7 @@ def _posterior(G, R, alpha, beta):
     return Mu, Linv, diagS
 
 
-class RVM(RegressorMixin, BaseEstimator):
+class RVM(PoseRegressor):
     """Relevance vector machine regression, multi-output with shared relevance vectors (Tipping 2001).
 
     Parameters
@@ -113,6 +113,9 @@ class RVM(RegressorMixin, BaseEstimator):
         Iterations run; ``converged_`` tells whether ``tol`` was reached.
     """
 
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "RVM"
+
     _parameter_constraints = {
         "width_scale": [POSITIVE],
         "noise": [StrOptions({"shared", "per_output"})],
@@ -138,20 +141,12 @@ class RVM(RegressorMixin, BaseEstimator):
         self.tol = tol
         self.prune_threshold = prune_threshold
 
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
-
     def _design(self, X):
         """Bias column + kernel columns of the active relevance vectors."""
         K = np.exp(-_sq_dists(X, self.X_rv_) / (2.0 * self.kernel_width_**2))
         if self.has_bias_:
             K = np.column_stack([np.ones(X.shape[0]), K])
         return K
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
-        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

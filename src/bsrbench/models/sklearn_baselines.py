@@ -25,7 +25,6 @@ from numbers import Integral, Real
 import numpy as np
 from scipy.linalg import cho_solve, cholesky
 from scipy.optimize import minimize
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.ensemble import RandomForestRegressor
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
@@ -39,24 +38,23 @@ from .reference import (
     COUNT,
     NON_NEGATIVE,
     POSITIVE,
+    PoseRegressor,
     _format_output,
     _median_distance,
-    _regressor_tags,
     _validate_fit,
     _validate_predict,
     check_params,
 )
 from .scaling import INPUT_SCALINGS, InputScaler
 
+__all__ = ["KernelRidgeRBF", "GaussianProcessARD", "RandomForest", "MLP"]
 
-class _ScaledRegressor(RegressorMixin, BaseEstimator):
+
+class _ScaledRegressor(PoseRegressor):
     """Shared fit/predict: validate, scale inputs, fit ``self._make(X, Y)`` on (optionally standardized)
     outputs, clip predictions."""
 
     _standardize_y = False
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)
@@ -106,10 +104,6 @@ class KernelRidgeRBF(_ScaledRegressor):
         self.alpha = alpha
         self.gamma_scale = gamma_scale
         self.input_scaling = input_scaling
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
 
     def _make(self, Xs, Y):
         self.gamma_ = float(self.gamma_scale) / _median_distance(Xs) ** 2
@@ -260,10 +254,6 @@ class GaussianProcessARD(_ScaledRegressor):
         self.input_scaling = input_scaling
         self.random_state = random_state
 
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
-
     def _make(self, Xs, Y):
         m = _median_distance(Xs)
         kernel = ConstantKernel(1.0, (1e-3, 1e3)) * RBF(
@@ -318,10 +308,6 @@ class RandomForest(_ScaledRegressor):
         self.max_features = max_features
         self.min_samples_leaf = min_samples_leaf
         self.random_state = random_state
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters; raises InputError naming the parameter and its value."""
-        check_params(self)
 
     def _make(self, Xs, Y):
         return RandomForestRegressor(

@@ -20,7 +20,6 @@ the largest correlation is returned, which is the limit of the L1 path as alpha 
 import warnings
 
 import numpy as np
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.linear_model import Lasso, LassoLars
 from sklearn.utils._param_validation import StrOptions
@@ -29,12 +28,14 @@ from .reference import (
     BOOLEAN,
     COUNT,
     POSITIVE,
+    PoseRegressor,
     _format_output,
-    _regressor_tags,
     _validate_fit,
     _validate_predict,
     check_params,
 )
+
+__all__ = ["SR"]
 
 
 def _normalize_rows(X, how):
@@ -82,7 +83,7 @@ def _decode(C, Y, D, B, normalize_coef):
     return P
 
 
-class SR(RegressorMixin, BaseEstimator):
+class SR(PoseRegressor):
     """Sparse-representation pose regression (Huang & Yang 2009).
 
     Parameters
@@ -109,6 +110,9 @@ class SR(RegressorMixin, BaseEstimator):
     (:func:`bsrbench.models.scaling.output_bounds`). Raises ``InputError`` for a bad parameter or a
     non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "SR"
 
     _predict_time_params = ("alpha",)
 
@@ -139,14 +143,6 @@ class SR(RegressorMixin, BaseEstimator):
         self.solver = solver
         self.max_iter = max_iter
         self.tol = tol
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
-
-    def _check_params(self, n_samples=None):
-        """Validate the hyper-parameters (and, given ``n_samples``, that N training rows suffice for them); called
-        by :meth:`fit` and by the study's configuration check before any job runs. Raises InputError."""
-        check_params(self)
 
     def fit(self, X, Y):
         X, Y = _validate_fit(self, X, Y)

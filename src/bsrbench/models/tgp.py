@@ -24,23 +24,24 @@ for all test points at once by batched LAPACK calls.
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import minimize
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils._param_validation import StrOptions
 
 from ..errors import InputError
 from .reference import (
     COUNT,
     POSITIVE,
+    PoseRegressor,
     RidgeRegressor,
     _format_output,
     _median_distance,
-    _regressor_tags,
     _sq_dists,
     _validate_fit,
     _validate_predict,
     check_params,
 )
 from .scaling import INPUT_SCALINGS
+
+__all__ = ["TGP"]
 
 _FROM_PARAMS = object()
 
@@ -63,7 +64,7 @@ def _kld_objective(y, Ytr, Ainv, u, eta, c, inv_w2):
     return f, grad
 
 
-class TGP(RegressorMixin, BaseEstimator):
+class TGP(PoseRegressor):
     """Twin Gaussian process regression (KL-divergence form, Bo & Sminchisescu 2010).
 
     Parameters
@@ -93,6 +94,9 @@ class TGP(RegressorMixin, BaseEstimator):
     range of each output widened by half its width on each side (:func:`bsrbench.models.scaling.output_bounds`).
     Raises ``InputError`` for a bad parameter or a non-finite feature.
     """
+
+    #: The column of the paper's Tables I-II that this class reproduces (:mod:`bsrbench.methods`).
+    paper_name = "TGP"
 
     _predict_time_params = ("n_neighbors", "init")
     _parameter_constraints = {
@@ -128,9 +132,6 @@ class TGP(RegressorMixin, BaseEstimator):
         self.input_scaling = input_scaling
         self.max_iter = max_iter
         self.tol = tol
-
-    def __sklearn_tags__(self):
-        return _regressor_tags(super().__sklearn_tags__())
 
     def _check_k(self, k, n):
         check_params(self, {"n_neighbors": k})

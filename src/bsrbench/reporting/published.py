@@ -49,21 +49,12 @@ import numpy as np
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
+from ..methods import configured
 from . import comparisons as cmp
 from .convergence import with_convergence_columns
 from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
 
-#: Column order of the README's tables, and their labels.
-README_METHODS = ("RVM", "TGP", "SR", "DDL", "PM", "NN1", "Ridge")
-#: Today's baselines (``group: today`` in config/config.yaml and config/paper.yaml), in italics in the summary.
-TODAY_METHODS = ("KNN", "KRR", "GP", "RF", "MLP")
-README_LABELS = {
-    "NN1": "1-NN",
-    "KNN": "k-NN",
-    "KRR": "kernel ridge",
-    "GP": "GP (ARD)",
-    "RF": "random forest",
-}
+#: The study whose published table the README shows (``reports/published/paper.csv``, ``config/paper.yaml``).
 _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tables.csv"
 
 
@@ -166,12 +157,16 @@ TIE_LEGEND = (
 
 
 def readme_tables(
-    df, paper, *, protocol="random", methods=README_METHODS, labels=None, digits=2, comparisons=None
+    df, paper, *, protocol="random", methods=None, labels=None, digits=2, comparisons=None
 ):
     """{source: markdown table} of the README: one row per (activity, N), one column per method, the means
     tied with the row's best marked (:data:`.tables.TIE_TEXT`, from ``comparisons``, computed from ``df`` if None),
-    and the legend under the table."""
-    labels = {**README_LABELS, **(labels or {})}
+    and the legend under the table. ``methods`` (the first columns, in order; the others follow by name) default to
+    the paper's block of the README's study, and ``labels`` to its labels (:func:`bsrbench.methods.configured`)."""
+    registry = configured(README_STUDY)
+    if methods is None:
+        methods = [m for m, r in registry.items() if r.group != "today"]
+    labels = {**{m: r.label for m, r in registry.items()}, **(labels or {})}
     if comparisons is None:
         comparisons = cmp.comparisons(df[df["protocol"] == protocol])
     ties = cmp.tied_with_best(comparisons)
@@ -221,8 +216,11 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
     the (activity, N) cells of the mean angle error (degrees), of the MPJPE (mm, where recorded) and of the
     method's rank in the cell (1: lowest mean error), and in how many cells the method is the best or
     statistically indistinguishable from it; and its legend. With ``paper`` (:func:`.tables.read_paper_tables`),
-    the paper's mean over the same cells follows a paper method's error in brackets."""
-    labels = {**README_LABELS, **(labels or {})}
+    the paper's mean over the same cells follows a paper method's error in brackets. The methods' order, labels
+    and groups come from the registry of the README's study (:func:`bsrbench.methods.configured`)."""
+    registry = configured(README_STUDY)
+    labels = {**{m: r.label for m, r in registry.items()}, **(labels or {})}
+    today = {m for m, r in registry.items() if r.group == "today"}
     d = df[df["protocol"] == protocol]
     if d.empty:
         raise InputError(f"no rows of protocol {protocol!r} to summarise")
@@ -231,7 +229,9 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
     ties = cmp.tied_with_best(comparisons)
     sources = list(dict.fromkeys(d["source"]))
     present = set(d["method"])
-    order = [m for m in README_METHODS + TODAY_METHODS if m in present]
+    order = [
+        m for m in sorted(registry, key=lambda m: (m in today, registry[m].order)) if m in present
+    ]
     order += sorted(present - set(order))
     cells = d.groupby(["source", "activity", "n_train", "method"])
     err = cells["error"].mean()
@@ -251,7 +251,7 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for m in order:
         name = labels.get(m, m)
-        row = [f"*{name}*" if m in TODAY_METHODS else name]
+        row = [f"*{name}*" if m in today else name]
         for src in sources:
             e = err.xs((src, m), level=("source", "method"))
             txt = f"{e.mean():.{digits}f}"
@@ -290,7 +290,7 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
 def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
     """Markdown table: per protocol and source, in how many (activity, N) cells PM is significantly worse than,
     tied with or better than the cell's best method and 1-NN (:func:`.comparisons.pm_counts`), and its legend."""
-    labels = {**README_LABELS, **(labels or {})}
+    labels = {**{m: r.label for m, r in configured(README_STUDY).items()}, **(labels or {})}
     t = cmp.pm_counts(comparisons, pm=pm, nn=nn)
     lines = [
         f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test | worse (Wilcoxon) |",

@@ -1,35 +1,28 @@
-"""The aggregate result table and the LaTeX tables in the layout of the paper's Tables I and II.
+"""The LaTeX tables in the layout of the paper's Tables I and II, and the summary (mean and std over seeds) they show.
 
 Every table, plot and finding is computed from the aggregate table (``results/{study}/aggregate/results.csv``, one
-row per fit job, built by :func:`aggregate_rows`). Tables contain no timings, so two runs of the same
+row per fit job, built by :func:`bsrbench.results.aggregate_rows`). Tables contain no timings, so two runs of the same
 configuration give identical tables.
 """
 
-import json
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..config import KEY_COLUMNS, check_design
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
+from ..paper import PAPER_METHODS, PAPER_TABLES  # noqa: F401 (PAPER_METHODS: report.py's name)
+from ..results import (  # noqa: F401 (the aggregate table's functions, under the names the scripts use)
+    KEY_COLUMNS,
+    aggregate_files,
+    aggregate_rows,
+    check_rows,
+    read_results,
+    write_csv,
+)
 
-#: The paper's activities per table, spelled as in the paper.
-PAPER_TABLES = {
-    "I": ["Acrobatics", "Navigate", "Golf"],
-    "II": [
-        "Throw and catch football",
-        "Michael jackson styled motions",
-        "Kick soccer ball",
-        "Run",
-        "Walk",
-    ],
-}
-#: Methods of the paper's tables (their labels), in the paper's column order.
-PAPER_METHODS = ("RVM", "TGP", "SR", "DDL", "PM")
 #: Why a paper activity has no row (the ``kind`` of the workflow's data_status), as a table cell says it.
 NO_ROW = {
     "none": "no data set of this source",
@@ -67,112 +60,6 @@ def activity_label(activity, paper_activity=None):
     if isinstance(paper_activity, str) and paper_activity.strip():
         return paper_activity
     return str(activity).replace("_", " ").capitalize()
-
-
-# ------------------------------------------------------------------------------------------------ aggregate
-def aggregate_rows(rows):
-    """One tidy DataFrame from result rows (dicts as written by :func:`bsrbench.runs.run_job`).
-
-    Nested values (params, per-angle RMS, versions) become JSON strings. Rows are sorted by the key
-    columns; a duplicate key raises InputError.
-    """
-    rows = list(rows)
-    if not rows:
-        raise InputError("no result rows to aggregate")
-    flat = []
-    for r in rows:
-        missing = [k for k in KEY_COLUMNS + ["error"] if k not in r]
-        if missing:
-            raise InputError(f"result row lacks {missing}: {str(r)[:200]}")
-        flat.append(
-            {
-                k: (json.dumps(v, sort_keys=True) if isinstance(v, (dict, list)) else v)
-                for k, v in r.items()
-            }
-        )
-    df = pd.DataFrame(flat)
-    dup = df.duplicated(KEY_COLUMNS, keep=False)
-    if dup.any():
-        raise InputError(f"duplicate result rows for {df.loc[dup, KEY_COLUMNS].iloc[0].to_dict()}")
-    first = [c for c in KEY_COLUMNS + ["error", "coverage"] if c in df.columns]
-    df = df[first + sorted(c for c in df.columns if c not in first)]
-    return df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
-
-
-def aggregate_files(paths):
-    """Read result-row JSON files and aggregate them (see :func:`aggregate_rows`)."""
-    rows = []
-    for p in paths:
-        try:
-            rows.append(json.loads(Path(p).read_text()))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise DataFileError(p, f"cannot read result row ({exc})") from exc
-    return aggregate_rows(rows)
-
-
-def write_csv(df, path):
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False)
-
-
-def read_results(path, design=None):
-    """Read the aggregate table and check its columns; with ``design``, check it is exactly that study.
-
-    ``design``: the configured study, ``{"protocols": [...], "pairs": [[source, activity], ...],
-    "methods": [...], "n_train": [...], "seeds": [...]}`` (see :func:`check_design`).
-    """
-    try:
-        df = pd.read_csv(path)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(
-            path, f"cannot read the aggregate table ({exc}); expected a CSV file"
-        ) from exc
-    missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
-    if missing:
-        raise DataFileError(path, f"missing columns {missing}")
-    if design is not None:
-        check_design(df, design, path=path)
-    check_rows(df, path=path)
-    return df
-
-
-def check_rows(df, *, path):
-    """Raise DataFileError unless every row is a valid job result and every cell has all its seeds.
-
-    n_train and seed are whole numbers, ``error`` a finite number >= 0 (degrees), no job appears twice, and each
-    (protocol, source, activity, method, n_train) cell holds the same seeds as the whole table: a damaged or
-    partial table must never be summarised into means. CSV row numbers in messages count the header as row 1.
-    """
-
-    def bad(mask, column, expected):
-        if mask.any():
-            i = int(np.flatnonzero(mask)[0])
-            value = df[column].iloc[i]
-            value = value.item() if isinstance(value, np.generic) else value
-            raise DataFileError(
-                path, f"row {i + 2}, column {column!r}: {value!r}; expected {expected}"
-            )
-
-    for col in ("n_train", "seed"):
-        v = pd.to_numeric(df[col], errors="coerce")
-        bad(~np.isfinite(v) | (v != np.round(v)), col, "a whole number")
-    err = pd.to_numeric(df["error"], errors="coerce")
-    bad(~np.isfinite(err) | (err < 0), "error", "a finite error >= 0 (degrees)")
-    bad(
-        df.duplicated(KEY_COLUMNS, keep="first").to_numpy(),
-        "seed",
-        "one row per job (this job appears twice)",
-    )
-    seeds = set(df["seed"].astype(int))
-    cells = (
-        df.assign(seed=df["seed"].astype(int)).groupby(KEY_COLUMNS[:-1], sort=True)["seed"].agg(set)
-    )
-    for key, got in cells.items():
-        if got != seeds:
-            cell = dict(zip(KEY_COLUMNS[:-1], key))
-            raise DataFileError(
-                path, f"cell {cell} has seeds {sorted(got)}; expected all of {sorted(seeds)}"
-            )
 
 
 def read_paper_tables(path):
