@@ -6,12 +6,8 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.convergence import (
-    convergence_summary_table,
-    gxy_caption,
-    why_pm_section,
-    write_why_pm,
-)
+from bsrbench.reporting.ablation import why_pm_section, write_why_pm
+from bsrbench.reporting.convergence import convergence_summary_table, gxy_caption
 from bsrbench.reporting.tables import read_paper_tables, read_results, write_csv
 
 sm = snakemake
