@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from bsrbench.reporting import today
+from bsrbench.reporting.latex import power_of_ten
 from bsrbench.reporting.tables import latex_tables, summarize, table_blocks
 
 
@@ -71,7 +72,7 @@ def test_scores_summary_skips_methods_without_a_predictive_distribution():
     assert "random & hsc & GP (ARD) & 3.50 & 2.50 & 2.50 & 3.50 & 0.80 & 0.90" in text
     assert (
         gp["nlpd_median"] == pytest.approx(2.5)
-        and today._number(696966.9) == r"$6.97\times 10^{5}$"
+        and power_of_ten(696966.9) == r"$6.97\times 10^{5}$"
     )
 
 
