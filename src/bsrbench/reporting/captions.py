@@ -4,6 +4,7 @@ aggregate table and the workflow's description of the study (protocols run, size
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .convergence import gxy_caption
 from .latex import escape
 from .plots import PROTOCOL_LINE_NAMES, PROTOCOL_LINESTYLES, paper_points_not_drawn
 
@@ -138,4 +139,31 @@ def figure_captions(figures, cd_figures, study, *, root):
             raise ValueError(f"figure {f}: its name should begin with one of {', '.join(KINDS)}")
         out.append((Path(f).relative_to(root), caption(kind, stem[len(kind) + 1 :], study)))
     out += [(Path(f).relative_to(root), caption("cd", Path(f).stem[3:], study)) for f in cd_figures]
+    return out
+
+
+#: The caption of the MCMC trace figure (rule plot_trace).
+TRACE = (
+    "MCMC traces of one PM split (first activity, largest $N$, first seed), every chain overlaid; "
+    "precisions on a log axis; shaded: burn-in."
+)
+
+
+def why_pm_captions(df, figures, *, gxy_methods, protocol, n_train, labels, root):
+    """(path relative to ``root``, caption) of each figure of the section "Why PM trails the paper here":
+    ``figures`` are ``trace.pdf`` (:data:`TRACE`) and ``gxy.pdf``, whose panels rule plot_gxy draws for the
+    methods ``gxy_methods`` (configuration key ``report.gxy_methods``) at ``protocol`` and ``n_train`` (the
+    study's first protocol and smallest $N$; :func:`bsrbench.reporting.convergence.gxy_caption`)."""
+    out = []
+    for f in figures:
+        stem = Path(f).stem
+        if stem == "trace":
+            text = TRACE
+        elif stem == "gxy":
+            text = gxy_caption(df, gxy_methods, protocol=protocol, n_train=n_train, labels=labels)
+        else:
+            raise ValueError(
+                f"figure {f}: no caption for it in the section (expected trace or gxy)"
+            )
+        out.append((Path(f).relative_to(root).as_posix(), text))
     return out

@@ -11,11 +11,13 @@ Rows of one-chain methods have NaN there. The PM ablation that reads these colum
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..convergence import CONVERGENCE_SERIES
+from ..io import read_npz
 from .latex import escape, fixed, percent, table
 
 #: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.
@@ -341,3 +343,51 @@ def plot_gxy(items, *, n_burn_in=None):
     )
     fig.tight_layout()
     return fig
+
+
+def saved_fit(df, path):
+    """What the aggregate table ``df`` says of the fit saved at ``path``
+    (``.../fit/{protocol}/{source}/{activity}/{method}/n{N}/seed{seed}.npz``): ``(key, params)``, ``key`` a dict of
+    protocol, source, activity, method, n_train and seed (from the path), ``params`` the row's params ({} if the
+    table has no row of it)."""
+    path = Path(path)
+    protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)
+    key = dict(
+        protocol=protocol,
+        source=source,
+        activity=activity,
+        method=method,
+        n_train=int(n[1:]),
+        seed=int(seed[4:]),
+    )
+    row = df
+    for k, v in key.items():
+        row = row[row[k] == v]
+    return key, (json.loads(row["params"].iloc[0]) if len(row) else {})
+
+
+def trace_figure(df, path, *, labels):
+    """The trace figure (:func:`plot_chain_traces`) of the fit saved at ``path``, titled with its method, data and
+    split; the burn-in from the fit, else from its params in ``df``."""
+    key, params = saved_fit(df, path)
+    arrays = read_npz(path)
+    label = labels.get(key["method"], key["method"])
+    return plot_chain_traces(
+        arrays,
+        title=f"{label} on {key['source']}/{key['activity']}, N={key['n_train']}, seed {key['seed']}",
+        n_burn_in=int(arrays["n_burn_in"]) if "n_burn_in" in arrays else params.get("n_burn_in"),
+    )
+
+
+def gxy_figure(df, paths, *, labels):
+    """The g_xy figure (:func:`plot_gxy`) of the fits saved at ``paths``, one panel each, titled with the method,
+    its K against N (:func:`gxy_panel`) and its proper prior if any."""
+    items = []
+    for path in paths:
+        key, params = saved_fit(df, path)
+        k, rel, prior = gxy_panel(params, key["n_train"])
+        title = f"{labels.get(key['method'], key['method'])}: K={k} {rel} N={key['n_train']}"
+        if prior is not None:
+            title += f"\nGamma({prior[0]:g}, {prior[1]:g}) prior"
+        items.append((title, read_npz(path)))
+    return plot_gxy(items)

@@ -603,6 +603,19 @@ def write_section(path, text):
         tmp.write_text(text or "% no mechanism variants in this study: no section\n")
 
 
+def section_and_table(results, comparisons, *, methods, run, base, labels):
+    """The section (:func:`section_latex`), its table (:func:`mechanism_table`; no rows without variants) and
+    the variants, found in the configuration's ``methods`` and ``run`` (:func:`variants_from_config`)."""
+    variants = variants_from_config(methods, run, base=base)
+    text = section_latex(results, comparisons, base=base, variants=variants, labels=labels)
+    table = (
+        mechanism_table(results, comparisons, base=base, variants=variants)
+        if variants
+        else pd.DataFrame(columns=TABLE_COLUMNS)
+    )
+    return text, table, variants
+
+
 # ------------------------------------------------------------------------------------------ README
 def _plain(text):
     """LaTeX of :func:`describe` as plain markdown text."""

@@ -290,3 +290,14 @@ def section_latex(df, comp, *, methods, groups, labels, pit_figure=None, pm="PM"
             )
         )
     return "\n".join(out) + "\n"
+
+
+def pit_panels(arrays, keys):
+    """The PIT values of each panel of :func:`plot_pit`: ``{(source, method): values}``, pooled over the saved
+    fits ``arrays`` (one mapping per fit, e.g. from :func:`bsrbench.io.read_npz`) whose panels are ``keys``
+    (one (source, method) per fit); a fit without PIT values adds none."""
+    panels = {}
+    for a, key in zip(arrays, keys):
+        if "pit" in a:
+            panels.setdefault(tuple(key), []).append(np.asarray(a["pit"], dtype=float).ravel())
+    return {k: np.concatenate(v) for k, v in panels.items()}
