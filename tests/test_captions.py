@@ -109,3 +109,16 @@ def test_figure_captions_in_order_with_paths_from_the_report_folder(tmp_path):
         captions.figure_captions([root / "figures" / "pit_hsc.pdf"], [], _study(), root=root)
     with pytest.raises(ValueError, match="no caption for figure kind 'pit'"):
         captions.caption("pit", "hsc", _study())
+
+
+def test_why_pm_captions_describe_the_trace_and_the_gxy_panels(tmp_path):
+    df = pd.DataFrame(
+        [dict(method="PMK16", protocol="random", n_train=30, params='{"n_atoms": 16}')]
+    )
+    root = tmp_path / "reports" / "s"
+    kw = dict(gxy_methods=["PMK16"], protocol="random", n_train=30, labels={}, root=root)
+    out = captions.why_pm_captions(df, [root / "figures/trace.pdf", root / "figures/gxy.pdf"], **kw)
+    assert out[0] == ("figures/trace.pdf", captions.TRACE)
+    assert out[1][0] == "figures/gxy.pdf" and "PMK16: $K = 16 < N = 30$" in out[1][1]
+    with pytest.raises(ValueError, match="expected trace or gxy"):
+        captions.why_pm_captions(df, [root / "figures/pit.pdf"], **kw)

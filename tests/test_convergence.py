@@ -200,3 +200,26 @@ def test_log_trace_axes_are_labelled_across_their_range():
             if hi > 12:
                 assert max(ticks) > 10, ticks
         plt.close(fig)
+
+
+def test_saved_fit_finds_the_row_of_a_fit_file():
+    df = pd.DataFrame(
+        [
+            dict(
+                protocol="random",
+                source="hsc",
+                activity="golf",
+                method="PM",
+                n_train=30,
+                seed=s,
+                params=json.dumps({"n_atoms": 10 + s}),
+            )
+            for s in (0, 1)
+        ]
+    )
+    key, params = conv.saved_fit(df, "results/s/fit/random/hsc/golf/PM/n30/seed1.npz")
+    assert key == dict(
+        protocol="random", source="hsc", activity="golf", method="PM", n_train=30, seed=1
+    )
+    assert params == {"n_atoms": 11}
+    assert conv.saved_fit(df, "results/s/fit/random/hsc/golf/PM/n60/seed1.npz")[1] == {}

@@ -279,3 +279,12 @@ def test_stick_figure_titles_of_long_method_labels_stay_over_their_panel():
     for left, right in zip(boxes, boxes[1:]):
         assert left.x1 < right.x0, (left, right)  # no title overlaps its neighbour
     plt.close(fig)
+
+
+def test_frame_errors_wrap_the_angle_differences():
+    from bsrbench.reporting.plots import frame_errors
+
+    truth = np.array([[350.0, 10.0], [0.0, -170.0]])
+    pred = np.array([[10.0, 10.0], [90.0, 170.0]])
+    # 350 -> 10 is 20 degrees, not 340; -170 -> 170 is 20 degrees
+    np.testing.assert_allclose(frame_errors(truth, pred), [(20 + 0) / 2, (90 + 20) / 2])
