@@ -312,3 +312,27 @@ def test_published_mechanisms_no_variant_names_the_table(tmp_path, capsys):
     assert published_main(["mechanisms", str(plain)]) == 2
     err = capsys.readouterr().err
     assert f"{plain}: no mechanism variant of 'PM'" in err
+
+
+def test_section_and_table_find_the_variants_in_the_configuration():
+    """The section and table of a configuration with variants; a configuration without any has no section and an
+    empty table with the table's columns."""
+    df = _table()
+    comp = cmp.comparisons(df)
+    methods = {m: {"estimator": BSR, "params": p} for m, p in PARAMS.items()}
+    methods["NN1"] = {"estimator": "bsrbench.models.reference:NearestNeighbourRegressor"}
+    run = list(methods)
+    text, table, variants = mech.section_and_table(
+        df, comp, methods=methods, run=run, base="PM", labels={}
+    )
+    assert variants == mech.variants_from_config(methods, run, base="PM")
+    assert set(variants) == set(VARIANTS)  # PMK16 changes another parameter: no variant
+    assert text == mech.section_latex(df, comp, base="PM", variants=variants, labels={})
+    pd.testing.assert_frame_equal(
+        table, mech.mechanism_table(df, comp, base="PM", variants=variants)
+    )
+    text, table, variants = mech.section_and_table(
+        df, comp, methods=methods, run=["PM", "NN1"], base="PM", labels={}
+    )
+    assert (text, variants) == ("", {}) and table.empty
+    assert list(table.columns) == mech.TABLE_COLUMNS

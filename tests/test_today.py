@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from bsrbench.reporting import today
+from bsrbench.reporting.latex import power_of_ten
 from bsrbench.reporting.tables import latex_tables, summarize, table_blocks
 
 
@@ -70,8 +71,7 @@ def test_scores_summary_skips_methods_without_a_predictive_distribution():
     text = today.scores_latex(s, labels={"GP": "GP (ARD)"})
     assert "random & hsc & GP (ARD) & 3.50 & 2.50 & 2.50 & 3.50 & 0.80 & 0.90" in text
     assert (
-        gp["nlpd_median"] == pytest.approx(2.5)
-        and today._number(696966.9) == r"$6.97\times 10^{5}$"
+        gp["nlpd_median"] == pytest.approx(2.5) and power_of_ten(696966.9) == r"$6.97\times 10^{5}$"
     )
 
 
@@ -183,3 +183,12 @@ def test_readme_summary_is_the_mean_over_cells_with_ranks_and_the_paper_s_mean(t
         readme, {"hsc": "TABLE"}, None, text
     )  # no table markers: the summary alone is written
     assert "STALE" not in readme.read_text() and "| PM | 5.55" in readme.read_text()
+
+
+def test_pit_panels_pool_the_fits_of_each_source_and_method():
+    fits = [{"pit": np.array([[0.1, 0.2]])}, {"pit": np.array([0.9])}, {}, {"pit": [0.5]}]
+    keys = [["hsc", "PM"], ("hsc", "PM"), ("hsc", "NN1"), ("mocap", "PM")]
+    panels = today.pit_panels(fits, keys)
+    assert sorted(panels) == [("hsc", "PM"), ("mocap", "PM")]  # NN1 saved no PIT values: no panel
+    np.testing.assert_array_equal(panels[("hsc", "PM")], [0.1, 0.2, 0.9])
+    np.testing.assert_array_equal(panels[("mocap", "PM")], [0.5])

@@ -725,7 +725,7 @@ def test_a_changed_method_setting_reruns_its_fits_and_cv(ci_run):
 def test_ci_report_has_no_overfull_box_undefined_reference_or_small_figure_font(ci_run):
     from pdftext import figure_text_sizes
 
-    from bsrbench.reporting.report import latex_log_problems
+    from bsrbench.reporting.build import latex_log_problems
 
     log = (ci_run / "reports" / "ci" / "build" / "report.log").read_text(errors="replace")
     assert latex_log_problems(log, max_overfull_pt=1.0) == []

@@ -6,7 +6,7 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.report import build_header, build_pdf
+from bsrbench.reporting.build import build_header, build_pdf
 
 sm = snakemake
 build_pdf(

@@ -6,40 +6,31 @@ from pathlib import Path
 
 sys.stderr = open(snakemake.log[0], "w")
 
-from bsrbench.reporting.convergence import (
-    convergence_summary_table,
-    gxy_caption,
-    why_pm_section,
-    write_why_pm,
-)
+from bsrbench.reporting.ablation import why_pm_section, write_why_pm
+from bsrbench.reporting.captions import why_pm_captions
+from bsrbench.reporting.convergence import convergence_summary_table
 from bsrbench.reporting.tables import read_paper_tables, read_results, write_csv
 
 sm = snakemake
-CAPTIONS = {
-    "trace": "MCMC traces of one PM split (first activity, largest $N$, first seed), every chain overlaid; "
-    "precisions on a log axis; shaded: burn-in.",
-}
 df = read_results(sm.input.results)
-# the g_xy figure's panels (rule plot_gxy, gxy_inputs): first protocol, smallest N, one per report.gxy_methods
-CAPTIONS["gxy"] = gxy_caption(
+labels = dict(sm.params.labels)
+figures = why_pm_captions(
     df,
-    sm.config["report"].get("gxy_methods") or [],
+    sm.params.figures,
+    gxy_methods=sm.config["report"].get("gxy_methods") or [],
+    # the g_xy figure's panels (rule plot_gxy, gxy_inputs): first protocol, smallest N
     protocol=sm.config["protocols"][0],
     n_train=min(sm.config["n_train"]),
-    labels=dict(sm.params.labels),
+    labels=labels,
+    root=Path(
+        sm.output.section
+    ).parent.parent,  # reports/{study}: the LaTeX paths are relative to it
 )
-paper = read_paper_tables(sm.input.paper)
-root = Path(
-    sm.output.section
-).parent.parent  # the study's report folder reports/{study}; LaTeX paths are from it
-figures = [
-    (Path(f).relative_to(root).as_posix(), CAPTIONS[Path(f).stem]) for f in sm.params.figures
-]
 text = why_pm_section(
     df,
-    paper,
+    read_paper_tables(sm.input.paper),
     variants=list(sm.params.variants),
-    labels=dict(sm.params.labels),
+    labels=labels,
     figures=figures,
     base=sm.params.base,
     nn=sm.params.nn,

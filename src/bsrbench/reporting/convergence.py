@@ -1,23 +1,24 @@
-"""Convergence of the MCMC methods and the PM ablation: tables, figures and the report section
-"Why PM trails the paper here", all computed from the aggregate table.
+"""Convergence of the MCMC methods: the summary table, its LaTeX and the trace figures, from the aggregate table
+and the saved fits.
 
 A method run with several chains per split (config key ``methods.<M>.chains``) has, in its rows of the
 aggregate, ``n_chains`` and the split R-hat and bulk ESS across chains (ArviZ; Vehtari, Gelman, Simpson,
 Carpenter & Buerkner 2021) of the log-likelihood, g_xy, g_s (g_nx, g_ny with separate noise precisions)
 and the test error of each retained posterior sample (see :func:`bsrbench.convergence.convergence_summary`).
-Rows of one-chain methods have NaN there. The ablation runs PM variants as methods of their own
-(``config/ablation.yaml``); the variants of a study are the methods with the estimator of the trace method.
+Rows of one-chain methods have NaN there. The PM ablation that reads these columns is
+:mod:`bsrbench.reporting.ablation`.
 """
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..convergence import CONVERGENCE_SERIES
-from ..io import atomic_path
-from .tables import activity_label, best_mask, format_cell, latex_escape, paper_key, summarize
+from ..io import read_npz
+from .latex import escape, fixed, percent, table
 
 #: Columns the aggregate always has (NaN where not computed): chains per split, R-hat and bulk ESS.
 CONVERGENCE_COLUMNS = ["n_chains"] + [
@@ -99,10 +100,6 @@ def convergence_summary_table(df):
     return pd.DataFrame(rows)
 
 
-def _num(x, digits=2):
-    return "--" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
-
-
 def convergence_latex(df, *, labels):
     """LaTeX tables of the convergence per method, over the activities, one table per (protocol, N)."""
     df = _with_extra_columns(with_convergence_columns(df))
@@ -115,25 +112,23 @@ def convergence_latex(df, *, labels):
     out = []
     for (protocol, n_train), dp in d.groupby(["protocol", "n_train"], sort=True):
         acts = ", ".join(sorted(set(dp["activity"])))
-        out += [
-            r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{3pt}",
-            rf"\caption{{Convergence, protocol ``{latex_escape(protocol)}'', $N={int(n_train)}$ (activities: "
-            rf"{latex_escape(acts)}): "
+        caption = (
+            rf"Convergence, protocol ``{escape(protocol)}'', $N={int(n_train)}$ (activities: "
+            rf"{escape(acts)}): "
             r"largest split $\hat R$ over splits, smallest bulk and tail ESS over splits (across the chains of each "
             r"split) and largest Monte Carlo standard error (MCSE, degrees) of the test error over splits; "
             r"$\ell$: log-likelihood, err: test error of each retained sample; the last two columns: share of splits "
             rf"with $\hat R < {RHAT_STRICT}$ (Vehtari et al.\ 2021) and $< {RHAT_OK}$ for both $\ell$ and "
-            r"$\gamma_{xy}$; --: not recorded (results written before tail ESS and MCSE were).}",
-            r"\begin{tabular}{@{}lrrrrrrrrrrrrrr@{}}",
-            r"\toprule",
+            r"$\gamma_{xy}$; --: not recorded (results written before tail ESS and MCSE were)."
+        )
+        head = [
             r"& & & & \multicolumn{4}{c}{$\hat R$ (largest)} & \multicolumn{2}{c}{bulk ESS} & "
             r"\multicolumn{2}{c}{tail ESS} & MCSE & \multicolumn{2}{c}{$\hat R <$} \\",
             r"\cmidrule(lr){5-8}\cmidrule(lr){9-10}\cmidrule(lr){11-12}\cmidrule(lr){14-15}",
             r"Method & $N$ & splits & chains & $\ell$ & $\gamma_{xy}$ & $\gamma_s$ & "
             rf"err & $\ell$ & err & $\ell$ & err & err & {RHAT_STRICT} & {RHAT_OK} \\",
-            r"\midrule",
         ]
+        rows = []
         methods = list(dict.fromkeys(dp["method"]))
         for m in methods:
             for n, g in dp[dp["method"] == m].groupby("n_train", sort=True):
@@ -144,476 +139,36 @@ def convergence_latex(df, *, labels):
                 def mn(c, g=g):
                     return float(g[c].min()) if g[c].notna().any() else math.nan
 
-                out.append(
-                    " & ".join(
-                        [
-                            latex_escape(labels.get(m, m)),
-                            str(int(n)),
-                            str(len(g)),
-                            str(int(g["n_chains"].max())),
-                            _num(mx("r_hat_log_likelihood")),
-                            _num(mx("r_hat_g_xy")),
-                            _num(mx("r_hat_g_s")),
-                            _num(mx("r_hat_test_error")),
-                            _num(mn("ess_bulk_log_likelihood"), 0),
-                            _num(mn("ess_bulk_test_error"), 0),
-                            _num(mn("ess_tail_log_likelihood"), 0),
-                            _num(mn("ess_tail_test_error"), 0),
-                            _num(mx("mcse_test_error"), 3),
-                            f"{100 * converged(g, RHAT_STRICT).mean():.0f}\\%",
-                            f"{100 * converged(g, RHAT_OK).mean():.0f}\\%",
-                        ]
-                    )
-                    + r" \\"
-                )
-        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
-    return "\n".join(out)
-
-
-def _cell_stats(s, activity, n, method):
-    c = s[(s["activity"] == activity) & (s["n_train"] == n) & (s["method"] == method)]
-    if c.empty:
-        return math.nan, math.nan
-    return float(c["mean"].iloc[0]), float(c["std"].iloc[0])
-
-
-def ablation_cells(df, *, variants, nn="NN1"):
-    """Per (protocol, source, activity, n_train): the best variant's mean error, its name, 1-NN's mean, the best
-    other method (baseline) and its mean. A DataFrame (empty if no variant ran)."""
-    s = summarize(df)
-    rows = []
-    for key, g in s.groupby(
-        ["protocol", "source", "activity", "paper_activity", "n_train"], sort=True
-    ):
-        g = g.set_index("method")["mean"]
-        vs = g[[v for v in variants if v in g.index]].dropna()
-        if vs.empty:
-            continue
-        others = g[[m for m in g.index if m not in variants and m != nn]].dropna()
-        rows.append(
-            {
-                "protocol": key[0],
-                "source": key[1],
-                "activity": key[2],
-                "paper_activity": key[3],
-                "n_train": key[4],
-                "best_variant": vs.idxmin(),
-                "best_variant_error": float(vs.min()),
-                "nn_error": float(g[nn]) if nn in g.index else math.nan,
-                "best_baseline": others.idxmin() if len(others) else "",
-                "best_baseline_error": float(others.min()) if len(others) else math.nan,
-            }
-        )
-    return pd.DataFrame(rows)
-
-
-#: Logit updates that leave the posterior invariant (Geweke-tested in tests/test_bsr_geweke.py); the two
-#: "paper-*" updates of the ablation are the paper's printed acceptance ratios, which target another law.
-EXACT_W_UPDATES = ("ess", "mh")
-
-
-def _is_exact(params):
-    """Whether a variant's params (dict or JSON string from the aggregate) select an exact logit update
-    (``w_update`` absent means the default, elliptical slice)."""
-    if isinstance(params, str):
-        try:
-            params = json.loads(params)
-        except ValueError:
-            params = {}
-    return (params or {}).get("w_update", "ess") in EXACT_W_UPDATES
-
-
-def goal_table(df, *, variants, nn="NN1"):
-    """The issue's goal per (protocol, variant run with several chains): is it exact, in how many (source,
-    activity, N) cells did every split converge (:data:`RHAT_OK` on the log-likelihood and g_xy), in how many is
-    its mean error below 1-NN's, and in how many both. Sorted by protocol, then by cells with both (descending), then
-    by the variant's mean rank of error among the variants over the cells. Empty DataFrame if no variant ran.
-
-    Columns: protocol, method, exact, cells, converged, beats_nn, both, mean_rank, and converged_strict and
-    both_strict: the same counts at :data:`RHAT_STRICT`.
-    """
-    df = with_convergence_columns(df)
-    # only variants run with several chains: with one chain there is no R-hat, so convergence is not measured
-    chained = set(df.loc[df["n_chains"].fillna(1) > 1, "method"])
-    variants = [v for v in variants if v in chained]
-    s = summarize(df)
-    s = s[s["method"].isin(variants)]
-    if s.empty:
-        return pd.DataFrame(
-            columns=[
-                "protocol",
-                "method",
-                "exact",
-                "cells",
-                "converged",
-                "beats_nn",
-                "both",
-                "mean_rank",
-                "converged_strict",
-                "both_strict",
-            ]
-        )
-    keys = ["protocol", "source", "activity", "n_train"]
-    nn_mean = (
-        summarize(df[df["method"] == nn]).set_index(keys)["mean"]
-        if (df["method"] == nn).any()
-        else None
-    )
-    s = s.copy()
-    s["rank"] = s.groupby(keys)["mean"].rank(method="average")
-    conv = df[df["method"].isin(variants)].copy()
-    conv["ok"] = converged(conv, RHAT_OK)
-    conv["ok_strict"] = converged(conv, RHAT_STRICT)
-    conv_cell = conv.groupby(keys + ["method"])["ok"].all()
-    strict_cell = conv.groupby(keys + ["method"])["ok_strict"].all()
-    exact = {
-        m: _is_exact(g["params"].iloc[0]) if "params" in g else True
-        for m, g in df[df["method"].isin(variants)].groupby("method")
-    }
-    rows = []
-    for (protocol, m), g in s.groupby(["protocol", "method"], sort=True):
-        conv_ok = beats = both = strict = both_strict = 0
-        for _, r in g.iterrows():
-            k = (r["protocol"], r["source"], r["activity"], r["n_train"])
-            c = bool(conv_cell.get(k + (m,), False))
-            cs = bool(strict_cell.get(k + (m,), False))
-            b = nn_mean is not None and k in nn_mean.index and bool(r["mean"] < nn_mean[k])
-            conv_ok += c
-            beats += b
-            both += c and b
-            strict += cs
-            both_strict += cs and b
-        rows.append(
-            {
-                "protocol": protocol,
-                "method": m,
-                "exact": exact.get(m, True),
-                "cells": len(g),
-                "converged": conv_ok,
-                "beats_nn": beats,
-                "both": both,
-                "mean_rank": float(g["rank"].mean()),
-                "converged_strict": strict,
-                "both_strict": both_strict,
-            }
-        )
-    out = pd.DataFrame(rows)
-    out["_exact_first"] = ~out["exact"]
-    out = out.sort_values(
-        ["protocol", "_exact_first", "both", "mean_rank"], ascending=[True, True, False, True]
-    )
-    return out.drop(columns="_exact_first").reset_index(drop=True)
-
-
-def goal_sentence(df, *, variants, labels, nn="NN1"):
-    """One paragraph (LaTeX) per protocol: the exact variant that best meets the goal (most cells converged and
-    below 1-NN, then the best mean rank) and whether it meets it in at least three quarters of its cells."""
-    t = goal_table(df, variants=variants, nn=nn)
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
-    out = []
-    for protocol, tp in t.groupby("protocol", sort=True):
-        if not ((df["method"] == nn) & (df["protocol"] == protocol)).any():
-            out.append(
-                f"Protocol ``{latex_escape(protocol)}'': {L(nn)} was not run, so the goal is not judged."
-            )
-            continue
-        ex = tp[tp["exact"]]
-        if ex.empty:
-            out.append(f"Protocol ``{latex_escape(protocol)}'': no exact variant was run.")
-            continue
-        top = ex.iloc[0]
-        need = math.ceil(0.75 * int(top["cells"]))
-        verdict = "meets" if int(top["both"]) >= need else "does not meet"
-        out.append(
-            f"Protocol ``{latex_escape(protocol)}'': the exact variant closest to the goal is {L(top['method'])}. "
-            f"It has every split converged and a mean error below {L(nn)}'s in {int(top['both'])} of "
-            f"{int(top['cells'])} cells (every split converged in {int(top['converged'])}, below {L(nn)} in "
-            f"{int(top['beats_nn'])}), so it {verdict} the goal of at least {need} cells (three quarters). "
-            f"At $\\hat R < {RHAT_STRICT}$ every split converged in {int(top['converged_strict'])} of its cells, "
-            f"{int(top['both_strict'])} of them with a mean error below {L(nn)}'s."
-        )
-    return " ".join(out)
-
-
-def goal_latex(df, *, variants, labels, nn="NN1"):
-    """LaTeX table of :func:`goal_table`, one per protocol ('' if no variant ran)."""
-    t = goal_table(df, variants=variants, nn=nn)
-    if t.empty:
-        return ""
-    out = []
-    for protocol, tp in t.groupby("protocol", sort=True):
-        out += [
-            r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
-            rf"\caption{{The goal, protocol ``{latex_escape(protocol)}'': per PM variant, the (activity, $N$) cells "
-            rf"in which every split converged ($\hat R < {RHAT_OK}$ on $\ell$ and $\gamma_{{xy}}$), those in which "
-            rf"its mean error is below {latex_escape(labels.get(nn, nn))}'s, and both; rank: the variant's mean rank "
-            r"of error among the variants over the cells (1 best); the last two columns: the same counts of converged "
-            rf"cells and of both at $\hat R < {RHAT_STRICT}$ (Vehtari et al.\ 2021). Exact: its logit update leaves "
-            r"the posterior invariant (Geweke test); the paper's printed ratios do not.}",
-            r"\begin{tabular}{@{}lcrrrrrrr@{}}",
-            r"\toprule",
-            rf"& & & $\hat R < {RHAT_OK}$ & & $\hat R < {RHAT_OK}$ & & $\hat R < {RHAT_STRICT}$ & "
-            rf"$\hat R < {RHAT_STRICT}$ \\",
-            r"Variant & exact & cells & converged & beats "
-            + latex_escape(labels.get(nn, nn))
-            + r" & both & rank & converged & both \\",
-            r"\midrule",
-        ]
-        for _, r in tp.iterrows():
-            out.append(
-                " & ".join(
+                rows.append(
                     [
-                        latex_escape(labels.get(r["method"], r["method"])),
-                        "yes" if r["exact"] else "no",
-                        str(int(r["cells"])),
-                        str(int(r["converged"])),
-                        str(int(r["beats_nn"])),
-                        str(int(r["both"])),
-                        f"{r['mean_rank']:.1f}",
-                        str(int(r["converged_strict"])),
-                        str(int(r["both_strict"])),
+                        escape(labels.get(m, m)),
+                        str(int(n)),
+                        str(len(g)),
+                        str(int(g["n_chains"].max())),
+                        fixed(mx("r_hat_log_likelihood")),
+                        fixed(mx("r_hat_g_xy")),
+                        fixed(mx("r_hat_g_s")),
+                        fixed(mx("r_hat_test_error")),
+                        fixed(mn("ess_bulk_log_likelihood"), 0),
+                        fixed(mn("ess_bulk_test_error"), 0),
+                        fixed(mn("ess_tail_log_likelihood"), 0),
+                        fixed(mn("ess_tail_test_error"), 0),
+                        fixed(mx("mcse_test_error"), 3),
+                        percent(converged(g, RHAT_STRICT).mean()),
+                        percent(converged(g, RHAT_OK).mean()),
                     ]
                 )
-                + r" \\"
-            )
-        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
-    return "\n".join(out)
-
-
-def ablation_latex(df, paper, *, variants, labels, nn="NN1", digits=2):
-    """One table per (protocol, source, activity): variants x N, mean $\\pm$ std over splits, best in bold,
-    1-NN, the best other method and (random protocol... and any protocol, for reference) the paper's PM."""
-    s = summarize(df)
-    out = []
-    for (protocol, source, activity), sp in s.groupby(
-        ["protocol", "source", "activity"], sort=True
-    ):
-        vs = [v for v in variants if v in set(sp["method"])]
-        if not vs:
-            continue
-        sizes = sorted(int(n) for n in sp["n_train"].unique())
-        pa = sp["paper_activity"].iloc[0]
-        others = [m for m in dict.fromkeys(sp["method"]) if m not in variants and m != nn]
-        rows = [(latex_escape(labels.get(v, v)), v) for v in vs]
-        if nn in set(sp["method"]):
-            rows.append((latex_escape(labels.get(nn, nn)), nn))
-        grid = {m: [_cell_stats(sp, activity, n, m) for n in sizes] for _, m in rows}
-        best_base = []
-        for n in sizes:
-            cand = [(m, _cell_stats(sp, activity, n, m)) for m in others]
-            cand = [(m, st) for m, st in cand if np.isfinite(st[0])]
-            best_base.append(
-                min(cand, key=lambda t: t[1][0]) if cand else (None, (math.nan, math.nan))
-            )
-        bold = []
-        for i in range(len(sizes)):
-            col = [grid[m][i][0] for _, m in rows] + [best_base[i][1][0]]
-            bold.append(best_mask(col, digits))
         out += [
-            r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
-            rf"\caption{{PM variants on {latex_escape(activity_label(activity, pa))} ({latex_escape(source)}), "
-            rf"protocol ``{latex_escape(protocol)}'': mean error $\pm$ std (degrees) over splits; best of each "
-            r"column in bold (variants, 1-NN and the best other method); italic: the paper's PM (random frames).}",
-            r"\begin{tabular}{@{}l" + "c" * len(sizes) + "@{}}",
-            r"\toprule",
-            " & ".join(["Method"] + [f"$N={n}$" for n in sizes]) + r" \\",
-            r"\midrule",
+            table(
+                rows,
+                spec="@{}lrrrrrrrrrrrrrr@{}",
+                head=head,
+                caption=caption,
+                tabcolsep="3pt",
+            ),
+            "",
         ]
-        for r, (lab, m) in enumerate(rows):
-            if m == nn:
-                out.append(r"\midrule")
-            cells = [
-                format_cell(*grid[m][i], bold=bold[i][r], digits=digits) for i in range(len(sizes))
-            ]
-            out.append(" & ".join([lab] + cells) + r" \\")
-        cells = []
-        for i in range(len(sizes)):
-            m, st = best_base[i]
-            cells.append(
-                "--"
-                if m is None
-                else format_cell(*st, bold=bold[i][len(rows)], digits=digits)
-                + rf" {{\scriptsize ({latex_escape(labels.get(m, m))})}}"
-            )
-        out.append(" & ".join(["best other method"] + cells) + r" \\")
-        if paper is not None and paper_key(pa):
-            pc = paper[(paper["key"] == paper_key(pa)) & (paper["method"] == "PM")].set_index(
-                "n_train"
-            )
-            if any(n in pc.index for n in sizes):
-                cells = [
-                    r"\emph{"
-                    + format_cell(
-                        float(pc.at[n, "mean_deg"]), float(pc.at[n, "std_deg"]), digits=digits
-                    )
-                    + "}"
-                    if n in pc.index
-                    else ""
-                    for n in sizes
-                ]
-                out.append(" & ".join([r"\emph{paper's PM}"] + cells) + r" \\")
-        out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
     return "\n".join(out)
-
-
-def why_pm_sentences(df, paper, *, variants, labels, base="PM", nn="NN1"):
-    """Plain sentences (LaTeX) drawn from the numbers: where the best variant beats 1-NN, which variants
-    converge, and the base PM against the paper's."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
-    out = []
-    cells = ablation_cells(df, variants=variants, nn=nn)
-    if cells.empty:
-        return [f"No PM variant ({', '.join(L(v) for v in variants) or 'none'}) was run."]
-    for protocol, c in cells.groupby("protocol", sort=True):
-        have = c.dropna(subset=["nn_error"])
-        wins = have[have["best_variant_error"] < have["nn_error"]]
-        counts = c["best_variant"].value_counts()
-        out.append(
-            f"Protocol ``{latex_escape(protocol)}'': the best PM variant of each (activity, $N$) cell beats "
-            f"{L(nn)} in {len(wins)} of {len(have)} cells; the best variant is "
-            + ", ".join(f"{L(m)} in {k}" for m, k in counts.items())
-            + " of them."
-        )
-        bb = c.dropna(subset=["best_baseline_error"])
-        if len(bb):
-            beat = int((bb["best_variant_error"] < bb["best_baseline_error"]).sum())
-            out.append(
-                f"Against the best other method of each cell ({', '.join(sorted({L(m) for m in bb['best_baseline']}))}), "
-                f"the best PM variant is lower in {beat} of {len(bb)} cells."
-            )
-    conv = convergence_summary_table(df)
-    conv = conv[conv["method"].isin(variants)] if not conv.empty else conv
-    if conv.empty:
-        out.append(
-            "No PM variant was run with several chains, so convergence was not measured here."
-        )
-    else:
-        per = conv.groupby("method", sort=False)["converged"].mean()
-        strict = conv.groupby("method", sort=False)["converged_strict"].mean()
-        good = [m for m, v in per.items() if v == 1.0]
-        out.append(
-            f"Convergence ($\\hat R < {RHAT_OK}$ on the log-likelihood and $\\gamma_{{xy}}$ in every split, "
-            f"{int(conv['chains'].max())} chains): "
-            + (", ".join(L(m) for m in good) if good else "no variant")
-            + f" of {len(per)}; share of converged splits per variant: "
-            + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in per.items())
-            + f"; at $\\hat R < {RHAT_STRICT}$ (Vehtari et al.\\ 2021): "
-            + ", ".join(f"{L(m)} {100 * v:.0f}\\%" for m, v in strict.items())
-            + "."
-        )
-        conv_good = conv[conv["method"].isin(good)]
-        if len(conv_good) and conv_good["r_hat_g_s"].notna().any():
-            out.append(
-                f"For the converged variants the largest $\\hat R$ of $\\gamma_s$ is "
-                f"{float(conv_good['r_hat_g_s'].max()):.2f} and the smallest bulk ESS of the log-likelihood "
-                f"{float(conv_good['ess_bulk_log_likelihood'].min()):.0f}; for the others the largest "
-                f"$\\hat R$ of the log-likelihood is "
-                + (
-                    f"{float(conv[~conv['method'].isin(good)]['r_hat_log_likelihood'].max()):.2f}."
-                    if (~conv["method"].isin(good)).any()
-                    else "not applicable (all converged)."
-                )
-            )
-        # the goal as the goal table counts it: per protocol, cells with every split converged and a mean error
-        # below 1-NN's, in at least three quarters of the variant's cells
-        gt = goal_table(df, variants=variants, nn=nn)
-        meet = gt[gt["exact"] & (gt["both"] >= np.ceil(0.75 * gt["cells"]))] if len(gt) else gt
-        both = list(dict.fromkeys(meet["method"])) if len(meet) else []
-        out.append(
-            "Exact variants with every split converged and a mean error below "
-            + L(nn)
-            + "'s in at least three "
-            "quarters of their cells (the goal): "
-            + (", ".join(L(m) for m in both) if both else "none")
-            + "."
-        )
-    if paper is not None and base in variants:
-        # like with like: the paper's numbers are for random frames, so only this study's random protocol,
-        # and per data source (the sources' features differ)
-        s = summarize(df)
-        sb = s[(s["method"] == base) & (s["protocol"] == "random")].copy()
-        if sb.empty and (s["method"] == base).any():
-            run = ", ".join(sorted(set(s.loc[s["method"] == base, "protocol"])))
-            out.append(
-                f"The paper's numbers are for random frames; this study ran only the {latex_escape(run)} "
-                f"protocol, so {L(base)} is not compared with the paper's PM like for like."
-            )
-        else:
-            pp = paper[paper["method"] == "PM"]
-            m = sb.merge(pp, on=["key", "n_train"], suffixes=("", "_paper"))
-            per_source = []
-            for src, gs in m.groupby("source", sort=False):
-                parts = [
-                    f"$N={int(n)}$: {float(np.median(g['mean'])):.2f} against the paper's "
-                    f"{float(np.median(g['mean_deg'])):.2f}"
-                    for n, g in gs.groupby("n_train", sort=True)
-                ]
-                per_source.append(f"on the {latex_escape(src)} data, " + "; ".join(parts))
-            if per_source:
-                out.append(
-                    f"{L(base)} here against the paper's PM (random protocol, as in the paper; median "
-                    "over activities): " + "; ".join(per_source) + " degrees."
-                )
-    return out
-
-
-def why_pm_section(df, paper, *, variants, labels, figures, base="PM", nn="NN1"):
-    """The LaTeX section "Why PM trails the paper here" (input by reports/report.tex).
-
-    ``figures``: list of (path relative to the study's report folder reports/{study}, caption).
-    """
-    lines = [
-        "% generated from the study's aggregate table",
-        r"\section{Why PM trails the paper here}",
-        "",
-    ]
-    lines.append(
-        r"The paper's PM is a Gibbs sampler; its numbers carry weight only if the chains have converged. Every PM "
-        r"variant below is a method of its own (\texttt{config/ablation.yaml}); with several chains per split the "
-        r"prediction pools the chains and the split R-hat and bulk ESS (ArviZ) are computed across them."
-    )
-    lines += (
-        ["", r"\begin{itemize}"]
-        + [
-            r"\item " + t
-            for t in why_pm_sentences(df, paper, variants=variants, labels=labels, base=base, nn=nn)
-        ]
-        + [r"\end{itemize}", ""]
-    )
-    lines += [r"\subsection*{Convergence}", convergence_latex(df, labels=labels), ""]
-    goal = goal_latex(df, variants=variants, labels=labels, nn=nn)
-    if goal:
-        lines += [
-            r"\subsection*{The goal: an exact PM that converges and beats "
-            + latex_escape(labels.get(nn, nn))
-            + "}",
-            goal_sentence(df, variants=variants, labels=labels, nn=nn),
-            "",
-            goal,
-            "",
-        ]
-    if len(variants) > 1 or nn in set(df["method"]):
-        lines += [
-            r"\subsection*{Ablation}",
-            ablation_latex(df, paper, variants=variants, labels=labels, nn=nn),
-            "",
-        ]
-    for f, caption in figures:
-        lines += [
-            r"\begin{figure}[H]",
-            r"\centering",
-            rf"\includegraphics[width=\linewidth,height=0.8\textheight,keepaspectratio]{{{f}}}",
-            rf"\caption{{{caption}}}",
-            r"\end{figure}",
-        ]
-    return "\n".join(lines) + "\n"
-
-
-def write_why_pm(path, text):
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
 
 
 # --------------------------------------------------------------------------------------------------- figures
@@ -734,7 +289,7 @@ def gxy_caption(df, methods, *, protocol, n_train, labels):
             else {}
         )
         k, rel, prior = gxy_panel(params, n_train)
-        text = f"{latex_escape(labels.get(m, m))}: "
+        text = f"{escape(labels.get(m, m))}: "
         if k == "?":
             text += "$K$ unknown"
         else:
@@ -788,3 +343,51 @@ def plot_gxy(items, *, n_burn_in=None):
     )
     fig.tight_layout()
     return fig
+
+
+def saved_fit(df, path):
+    """What the aggregate table ``df`` says of the fit saved at ``path``
+    (``.../fit/{protocol}/{source}/{activity}/{method}/n{N}/seed{seed}.npz``): ``(key, params)``, ``key`` a dict of
+    protocol, source, activity, method, n_train and seed (from the path), ``params`` the row's params ({} if the
+    table has no row of it)."""
+    path = Path(path)
+    protocol, source, activity, method, n, seed = path.parts[-6:-1] + (path.stem,)
+    key = dict(
+        protocol=protocol,
+        source=source,
+        activity=activity,
+        method=method,
+        n_train=int(n[1:]),
+        seed=int(seed[4:]),
+    )
+    row = df
+    for k, v in key.items():
+        row = row[row[k] == v]
+    return key, (json.loads(row["params"].iloc[0]) if len(row) else {})
+
+
+def trace_figure(df, path, *, labels):
+    """The trace figure (:func:`plot_chain_traces`) of the fit saved at ``path``, titled with its method, data and
+    split; the burn-in from the fit, else from its params in ``df``."""
+    key, params = saved_fit(df, path)
+    arrays = read_npz(path)
+    label = labels.get(key["method"], key["method"])
+    return plot_chain_traces(
+        arrays,
+        title=f"{label} on {key['source']}/{key['activity']}, N={key['n_train']}, seed {key['seed']}",
+        n_burn_in=int(arrays["n_burn_in"]) if "n_burn_in" in arrays else params.get("n_burn_in"),
+    )
+
+
+def gxy_figure(df, paths, *, labels):
+    """The g_xy figure (:func:`plot_gxy`) of the fits saved at ``paths``, one panel each, titled with the method,
+    its K against N (:func:`gxy_panel`) and its proper prior if any."""
+    items = []
+    for path in paths:
+        key, params = saved_fit(df, path)
+        k, rel, prior = gxy_panel(params, key["n_train"])
+        title = f"{labels.get(key['method'], key['method'])}: K={k} {rel} N={key['n_train']}"
+        if prior is not None:
+            title += f"\nGamma({prior[0]:g}, {prior[1]:g}) prior"
+        items.append((title, read_npz(path)))
+    return plot_gxy(items)

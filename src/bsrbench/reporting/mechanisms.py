@@ -28,7 +28,9 @@ from scipy import stats
 from ..errors import InputError
 from ..io import atomic_path
 from . import comparisons as cmp
-from .tables import activity_label, latex_escape
+from . import latex
+from .latex import bold, escape, fixed, general, signed
+from .tables import activity_label
 
 #: The options of BayesianSR that switch the paper's two mechanisms, and the reason each one tests.
 MECHANISM_OPTIONS = {
@@ -149,10 +151,6 @@ def variants_from_results(df, *, base="PM", defaults=None):
 
 
 # ------------------------------------------------------------------------------------------ in words
-def _num(v):
-    return f"{v:g}" if isinstance(v, (int, float)) else str(v)
-
-
 def describe(options):
     """What a variant changes, in words (LaTeX), from its {option: value}."""
     parts = []
@@ -162,13 +160,13 @@ def describe(options):
         elif k == "logit_kernel" and v == "input":
             parts.append(r"the kernel on the inputs $X$ instead of the poses")
         elif k == "eta_scale":
-            parts.append(rf"the kernel bandwidth $\eta$ times {_num(v)}")
+            parts.append(rf"the kernel bandwidth $\eta$ times {general(v)}")
         elif k == "n_predict_samples" and v is not None and int(v) == 1:
             parts.append("a single posterior sample instead of the posterior average")
         elif k == "n_predict_samples" and v is not None:
             parts.append(f"the average of the last {int(v)} posterior samples only")
         else:
-            parts.append(r"\texttt{" + latex_escape(f"{k}={v}").replace("-", "-{}") + "}")
+            parts.append(r"\texttt{" + escape(f"{k}={v}").replace("-", "-{}") + "}")
     return " and ".join(parts)
 
 
@@ -322,19 +320,15 @@ def fit_table(results, *, base, variants):
 
 
 # ---------------------------------------------------------------------------------------- sentences
-def _deg(x):
-    return f"{x:+.2f}".replace("-", "$-$")
-
-
 def _interval(lo, hi):
-    return f"95\\% CI {_deg(lo)} to {_deg(hi)}"
+    return f"95\\% CI {signed(lo)} to {signed(hi)}"
 
 
 def variant_sentences(table, *, labels, base):
     """One sentence (LaTeX) per variant and (protocol, source): its difference to the base averaged over the
     activities at each N with the interval, and the count of cells where it is significantly worse, equal or
     better."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     out = []
     pooled_n = pooled_by_n(table)
     for (protocol, source, m), g in pooled_n.groupby(["protocol", "source", "method"], sort=False):
@@ -348,7 +342,7 @@ def variant_sentences(table, *, labels, base):
                 f" (mean over {r.activities} activities)" if r.activities > 1 else " (one activity)"
             )
             parts.append(
-                f"{_deg(r.mean_diff)} degrees ({_interval(r.ci_low, r.ci_high)}) at $N = {int(r.n_train)}${over}"
+                f"{signed(r.mean_diff)} degrees ({_interval(r.ci_low, r.ci_high)}) at $N = {int(r.n_train)}${over}"
             )
         n = int(g["cells"].sum())
         counts = ", ".join(
@@ -364,7 +358,7 @@ def variant_sentences(table, *, labels, base):
         )
         if pooled_n["protocol"].nunique() > 1 or pooled_n["source"].nunique() > 1:
             text = (
-                f"{latex_escape(protocol.replace('_', '-').capitalize())} protocol, {latex_escape(source)} data: "
+                f"{escape(protocol.replace('_', '-').capitalize())} protocol, {escape(source)} data: "
                 + text
             )
         out.append(text)
@@ -373,7 +367,7 @@ def variant_sentences(table, *, labels, base):
 
 def reason_sentences(table, *, labels, base):
     """Per reason tested: what the variants that switch it off do, summed over their cells."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     out = []
     counts = verdict_counts(table)
     pooled_n = pooled_by_n(table)
@@ -403,7 +397,7 @@ def reason_sentences(table, *, labels, base):
 def fit_sentences(results, *, labels, base, variants):
     """Training error against test error per N for the base and the averaging variants; "not recorded" when the
     results have no training error."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     ft = fit_table(results, base=base, variants=variants)
     names = [base] + [m for m, o in variants.items() if reason_of(o) == "averaging"]
     if ft is None:
@@ -428,7 +422,7 @@ def fit_sentences(results, *, labels, base, variants):
         out.append(
             "Training error against test error (degrees, mean over activities and splits"
             + (
-                f"; {latex_escape(protocol)} protocol, {latex_escape(source)} data"
+                f"; {escape(protocol)} protocol, {escape(source)} data"
                 if ft[["protocol", "source"]].drop_duplicates().shape[0] > 1
                 else ""
             )
@@ -444,15 +438,15 @@ def _cell_text(r):
     if not np.isfinite(r.mean_diff):
         return "--"
     if not np.isfinite(r.ci_low):
-        return _deg(r.mean_diff)
-    txt = f"{_deg(r.mean_diff)} {{\\scriptsize [{_deg(r.ci_low)}, {_deg(r.ci_high)}]}}"
-    return rf"\textbf{{{txt}}}" if r.verdict in ("worse", "better") else txt
+        return signed(r.mean_diff)
+    txt = f"{signed(r.mean_diff)} {{\\scriptsize [{signed(r.ci_low)}, {signed(r.ci_high)}]}}"
+    return bold(txt) if r.verdict in ("worse", "better") else txt
 
 
 def differences_latex(results, table, *, labels, base):
     """Per (protocol, source): rows the base's mean error per N, then each variant's mean difference to it with
     the 95% interval per N; one column per activity; bold: significant (Holm-adjusted)."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     out = []
     pa = (
         results.drop_duplicates("activity").set_index("activity")["paper_activity"].fillna("")
@@ -466,109 +460,90 @@ def differences_latex(results, table, *, labels, base):
         base_err = g.drop_duplicates(["activity", "n_train"]).set_index(["activity", "n_train"])[
             "base_error"
         ]
-        head = " & ".join(
-            ["Method", "$N$"] + [latex_escape(activity_label(a, pa.get(a, ""))) for a in acts]
-        )
-        lines = [
-            r"\begin{table}[H]",
-            r"\centering\footnotesize\setlength{\tabcolsep}{4pt}",
-            rf"\caption{{The mechanism variants against {L(base)}, {latex_escape(protocol)} protocol, "
-            rf"{latex_escape(source)} data: first {L(base)}'s mean error (degrees, over splits), then each variant's "
+        head = ["Method", "$N$"] + [escape(activity_label(a, pa.get(a, ""))) for a in acts]
+        caption = (
+            rf"The mechanism variants against {L(base)}, {escape(protocol)} protocol, "
+            rf"{escape(source)} data: first {L(base)}'s mean error (degrees, over splits), then each variant's "
             rf"mean difference to it on the same splits (variant $-$ {L(base)}; positive: the variant is worse) and "
             r"the 95\% interval of the corrected resampled $t$-test (Nadeau and Bengio 2003). Bold: significant, "
-            rf"Holm-adjusted over the cell's comparisons, $p < {cmp.ALPHA:g}$.}}",
-            r"\label{tab:mech-diff-" + f"{protocol}-{source}" + "}",
-            r"\begin{tabular}{@{}lr" + "r" * len(acts) + "@{}}",
-            r"\toprule",
-            head + r" \\",
-            r"\midrule",
-        ]
+            rf"Holm-adjusted over the cell's comparisons, $p < {cmp.ALPHA:g}$."
+        )
+        lines = []
         for i, n in enumerate(sizes):
-            cells = [
-                f"{float(base_err.get((a, n), math.nan)):.2f}"
-                if np.isfinite(base_err.get((a, n), math.nan))
-                else "--"
-                for a in acts
-            ]
-            lines.append(" & ".join([L(base) if i == 0 else "", str(n)] + cells) + r" \\")
+            cells = [fixed(float(base_err.get((a, n), math.nan))) for a in acts]
+            lines.append([L(base) if i == 0 else "", str(n)] + cells)
         for m in dict.fromkeys(g["method"]):
             lines.append(r"\midrule")
             for i, n in enumerate(sizes):
                 cells = [
                     _cell_text(idx.loc[(m, a, n)]) if (m, a, n) in idx.index else "--" for a in acts
                 ]
-                lines.append(" & ".join([L(m) if i == 0 else "", str(n)] + cells) + r" \\")
-        lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
-        out.append("\n".join(lines))
+                lines.append([L(m) if i == 0 else "", str(n)] + cells)
+        out.append(
+            latex.table(
+                lines,
+                spec="@{}lr" + "r" * len(acts) + "@{}",
+                head=[head],
+                caption=caption,
+                label=f"tab:mech-diff-{protocol}-{source}",
+                tabcolsep="4pt",
+            )
+        )
     return "\n\n".join(out)
 
 
 def counts_latex(table, *, labels, base):
     """The verdict counts per variant (:func:`verdict_counts`)."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     t = verdict_counts(table)
     rows = [
-        f"{L(r.method)} & {r.change} & {r.cells} & {r.worse} & {r.tied} & {r.better} & {r.untested} \\\\"
+        [L(r.method)] + [str(x) for x in (r.change, r.cells, r.worse, r.tied, r.better, r.untested)]
         for r in t.itertuples(index=False)
     ]
-    return "\n".join(
-        [
-            r"\begin{table}[H]",
-            r"\centering\footnotesize",
-            rf"\caption{{In how many (activity, $N$) cells each mechanism variant is significantly worse than, equal "
-            rf"to or better than {L(base)} (paired by split, corrected resampled $t$-test, Holm-adjusted over the "
-            rf"cell's comparisons, $p < {cmp.ALPHA:g}$; no test: fewer than 2 common splits).}}",
-            r"\label{tab:mech-counts}",
-            r"\begin{tabularx}{\linewidth}{@{}l>{\raggedright\arraybackslash}Xrrrrr@{}}",
-            r"\toprule",
-            r"Variant & What it changes & cells & worse & equal & better & no test \\",
-            r"\midrule",
-            *rows,
-            r"\bottomrule",
-            r"\end{tabularx}",
-            r"\end{table}",
-        ]
+    return latex.table(
+        rows,
+        width=r"\linewidth",
+        spec=r"@{}l>{\raggedright\arraybackslash}Xrrrrr@{}",
+        head=[r"Variant & What it changes & cells & worse & equal & better & no test \\"],
+        label="tab:mech-counts",
+        caption=rf"In how many (activity, $N$) cells each mechanism variant is significantly worse than, equal "
+        rf"to or better than {L(base)} (paired by split, corrected resampled $t$-test, Holm-adjusted over the "
+        rf"cell's comparisons, $p < {cmp.ALPHA:g}$; no test: fewer than 2 common splits).",
     )
 
 
 def fit_latex(results, *, labels, base, variants):
     """Training and test error per N of the base and the averaging variants ('' when not recorded)."""
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     ft = fit_table(results, base=base, variants=variants)
     if ft is None:
         return ""
     methods = list(dict.fromkeys(ft["method"]))
-    lines = [
-        r"\begin{table}[H]",
-        r"\centering\footnotesize",
-        r"\caption{Training error (on the training frames, each predicted from its input alone) beside the test "
+    caption = (
+        r"Training error (on the training frames, each predicted from its input alone) beside the test "
         r"error, degrees, mean over activities and splits. A training error far below the test error is "
-        r"overfitting.}",
-        r"\label{tab:mech-fit}",
-        r"\begin{tabular}{@{}llr" + "rr" * len(methods) + "@{}}",
-        r"\toprule",
-        " & ".join(
-            ["Protocol", "Source", ""] + [rf"\multicolumn{{2}}{{c}}{{{L(m)}}}" for m in methods]
-        )
-        + r" \\",
-        " & ".join(["", "", "$N$"] + ["train", "test"] * len(methods)) + r" \\",
-        r"\midrule",
+        r"overfitting."
+    )
+    head = [
+        ["Protocol", "Source", ""] + [rf"\multicolumn{{2}}{{c}}{{{L(m)}}}" for m in methods],
+        ["", "", "$N$"] + ["train", "test"] * len(methods),
     ]
+    lines = []
     for (protocol, source, n), g in ft.groupby(["protocol", "source", "n_train"], sort=True):
         g = g.set_index("method")
         cells = []
         for m in methods:
             tr = float(g.at[m, "train_error"]) if m in g.index else math.nan
             te = float(g.at[m, "test_error"]) if m in g.index else math.nan
-            cells += [
-                f"{tr:.2f}" if np.isfinite(tr) else "--",
-                f"{te:.2f}" if np.isfinite(te) else "--",
-            ]
-        lines.append(
-            " & ".join([latex_escape(protocol), latex_escape(source), str(int(n))] + cells) + r" \\"
-        )
-    lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
-    return "\n".join(lines)
+            cells += [fixed(tr), fixed(te)]
+        lines.append([escape(protocol), escape(source), str(int(n))] + cells)
+    return latex.table(
+        lines,
+        spec="@{}llr" + "rr" * len(methods) + "@{}",
+        head=head,
+        caption=caption,
+        label="tab:mech-fit",
+    )
 
 
 SECTION_TITLE = "Do the paper's reasons hold?"
@@ -580,7 +555,7 @@ def section_latex(results, comparisons, *, base, variants, labels):
     if not variants:
         return ""
     table = mechanism_table(results, comparisons, base=base, variants=variants)
-    L = lambda m: latex_escape(labels.get(m, m))  # noqa: E731
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
     reasons = list(dict.fromkeys(reason_of(o) for o in variants.values()))
     intro = (
         "The paper explains PM's advantage by two reasons (its Section III): "
@@ -603,7 +578,7 @@ def section_latex(results, comparisons, *, base, variants, labels):
     )
     lines = [
         "% generated from the study's aggregate and comparisons tables",
-        r"\section{" + latex_escape(SECTION_TITLE) + "}",
+        r"\section{" + escape(SECTION_TITLE) + "}",
         "",
         intro,
         "",
@@ -626,6 +601,19 @@ def write_section(path, text):
     """Write the section (an empty fragment, a comment only, for a study without mechanism variants)."""
     with atomic_path(path) as tmp:
         tmp.write_text(text or "% no mechanism variants in this study: no section\n")
+
+
+def section_and_table(results, comparisons, *, methods, run, base, labels):
+    """The section (:func:`section_latex`), its table (:func:`mechanism_table`; no rows without variants) and
+    the variants, found in the configuration's ``methods`` and ``run`` (:func:`variants_from_config`)."""
+    variants = variants_from_config(methods, run, base=base)
+    text = section_latex(results, comparisons, base=base, variants=variants, labels=labels)
+    table = (
+        mechanism_table(results, comparisons, base=base, variants=variants)
+        if variants
+        else pd.DataFrame(columns=TABLE_COLUMNS)
+    )
+    return text, table, variants
 
 
 # ------------------------------------------------------------------------------------------ README

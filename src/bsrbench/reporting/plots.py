@@ -15,6 +15,7 @@ it unscaled), so the font sizes below are printed sizes, none under :data:`MIN_F
 
 import math
 import textwrap
+from pathlib import Path
 
 import matplotlib
 
@@ -23,6 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..io import atomic_path
+from ..metrics import wrap_degrees
 from .tables import activity_label, paper_key, summarize
 
 #: Figures are drawn at the size they are printed (the report includes them unscaled; at most TEXT_WIDTH
@@ -578,3 +580,73 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
         for ax in axrow[2 + len(pnl["preds"]) :]:
             ax.set_visible(False)
     return fig
+
+
+def frame_errors(y_true, y_pred):
+    """Per-frame error: mean over angles of the absolute wrapped difference (degrees)."""
+    return np.mean(np.abs(wrap_degrees(np.asarray(y_pred) - np.asarray(y_true))), axis=1)
+
+
+def subjective_figure(items, methods, *, labels, sticks, motion):
+    """The subjective comparison of one data source: one test frame per activity (:func:`subjective_panels`).
+
+    ``items``: per activity (activity, label, features, {method: predictions}); ``sticks``: {activity: the kind of
+    stick figure it gets ("authors", the skeleton of a motion-capture trial, or None)}; ``motion``: {activity:
+    {"poses", "files", "render"}} of motion-capture activities. With a stick figure for every activity: the
+    paper's Fig. 2 layout (:func:`plot_subjective_sticks`): the input (the rendered silhouette of a BVH trial, or
+    the histogram of features in the authors' convention) and 3-D stick figures of the true and predicted poses;
+    otherwise the input histogram and angle profiles (:func:`plot_subjective`). Returns the figure.
+    """
+    panels = subjective_panels(items, methods, frame_errors)
+    activities = [it[0] for it in items]
+    if not (panels and all(sticks.get(a) for a in activities)):
+        return plot_subjective(panels, labels=labels)
+    # only figures with stick figures need the skeletons and the renderer
+    from ..authors import hsc_stick_figure
+    from ..mocap import parse_bvh
+    from ..render import render_silhouettes
+
+    stick_panels = []
+    for pnl in panels:
+        a = pnl["activity"]
+        if sticks[a] == "authors":
+            true, parents = hsc_stick_figure(pnl["y_true"])
+            stick_panels.append(
+                {
+                    "label": pnl["label"],
+                    "frame": pnl["frame"],
+                    "x": pnl["x"],
+                    "parents": parents,
+                    "true": true,
+                    "preds": {m: hsc_stick_figure(y)[0] for m, y in pnl["preds"].items()},
+                    "errors": pnl["errors"],
+                }
+            )
+            continue
+        with np.load(motion[a]["poses"]) as f:
+            mo = {k: f[k] for k in f.files}
+        # the features file's rows are the poses file's rows
+        k = int(pnl["frame"])
+        tid = str(mo["trial_ids"][int(mo["trial_index"][k])])
+        path = next(p for p in motion[a]["files"] if Path(p).stem == tid)
+        bvh = parse_bvh(path)
+        tf = int(mo["trial_frames"][k])
+        pj = [str(j) for j in mo["pose_joints"]]
+        sil = render_silhouettes(
+            mo["positions"][k : k + 1],
+            mo["parents"],
+            [str(j) for j in mo["joint_names"]],
+            **motion[a]["render"],
+        )[0]
+        stick_panels.append(
+            {
+                "label": pnl["label"],
+                "frame": k,
+                "silhouette": sil,
+                "parents": mo["parents"],
+                "true": pose_positions(bvh, tf, pj, pnl["y_true"]),
+                "preds": {m: pose_positions(bvh, tf, pj, y) for m, y in pnl["preds"].items()},
+                "errors": pnl["errors"],
+            }
+        )
+    return plot_subjective_sticks(stick_panels, labels=labels)

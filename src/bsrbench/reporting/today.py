@@ -14,7 +14,8 @@ import numpy as np
 import pandas as pd
 
 from .comparisons import verdict
-from .tables import activity_label, best_mask, latex_escape
+from .latex import best_mask, bold, escape, figure, fixed, power_of_ten, table
+from .tables import activity_label
 
 #: Columns of the uncertainty table, with their headers.
 SCORE_COLUMNS = {
@@ -47,35 +48,34 @@ def position_table(df, *, source, protocol, methods, labels, column="mpjpe_mm", 
     methods = [x for x in methods if x in set(m["method"])]
     what = "MPJPE" if column == "mpjpe_mm" else "PA-MPJPE"
     caption = (
-        f"{what} (mm) on the {latex_escape(source)} data, protocol ``{latex_escape(protocol)}'': mean over "
+        f"{what} (mm) on the {escape(source)} data, protocol ``{escape(protocol)}'': mean over "
         "seeds; best of each row in bold."
     )
-    out = [
-        r"\begin{table}[H]",
-        r"\centering\scriptsize\setlength{\tabcolsep}{2.5pt}",
-        rf"\caption{{{caption}}}",
-        rf"\label{{tab:{column}-{source}-{protocol}}}",
-        r"\begin{tabular}{@{}lr" + "r" * len(methods) + "@{}}",
-        r"\toprule",
-        " & ".join(["Activity", "N"] + [latex_escape(labels.get(x, x)) for x in methods]) + r" \\",
-    ]
+    body = []
     for activity, g in m.groupby("activity", sort=False):
-        out.append(r"\midrule")
-        name = latex_escape(activity_label(activity, g["paper_activity"].iloc[0]))
+        if body:
+            body.append(r"\midrule")
+        name = escape(activity_label(activity, g["paper_activity"].iloc[0]))
         for n, c in g.groupby("n_train", sort=True):
             c = c.set_index("method")[column]
             vals = [float(c[x]) if x in c.index else math.nan for x in methods]
-            bold = best_mask(vals, digits)
+            best = best_mask(vals, digits)
             cells = [
-                "--"
-                if not np.isfinite(v)
-                else (rf"\textbf{{{v:.{digits}f}}}" if b else f"{v:.{digits}f}")
-                for v, b in zip(vals, bold)
+                bold(fixed(v, digits)) if b and np.isfinite(v) else fixed(v, digits)
+                for v, b in zip(vals, best)
             ]
-            out.append(" & ".join([name, str(int(n))] + cells) + r" \\")
+            body.append([name, str(int(n))] + cells)
             name = ""
-    out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
-    return "\n".join(out)
+    text = table(
+        body,
+        spec="@{}lr" + "r" * len(methods) + "@{}",
+        head=[["Activity", "N"] + [escape(labels.get(x, x)) for x in methods]],
+        caption=caption,
+        label=f"tab:{column}-{source}-{protocol}",
+        size=r"\scriptsize",
+        tabcolsep="2.5pt",
+    )
+    return text + "\n"
 
 
 def scores_summary(df, *, methods):
@@ -102,49 +102,32 @@ def scores_summary(df, *, methods):
     ).reset_index(drop=True)
 
 
-def _number(v):
-    """Two decimals; a power of ten beyond 10^4 (an over-confident method's mean NLPD)."""
-    if abs(v) < 1e4:
-        return f"{v:.2f}"
-    m, e = f"{v:.2e}".split("e")
-    return rf"${m}\times 10^{{{int(e)}}}$"
-
-
 def scores_latex(summary, *, labels):
     """LaTeX table of :func:`scores_summary`; None when no method has a proper score."""
     if summary.empty:
         return None
-    out = [
-        r"\begin{table}[H]",
-        r"\centering\footnotesize",
-        r"\caption{Predictive distributions: means over all cells and seeds of the test error, NLPD (nats per "
+    caption = (
+        r"Predictive distributions: means over all cells and seeds of the test error, NLPD (nats per "
         r"angle, densities per degree; also its median over the splits), CRPS, and the empirical coverage of each method's central 90\% "
         r"interval and of a split-conformal 90\% interval (lower NLPD and CRPS are better; a coverage near "
-        r"0.90 is calibrated).}",
-        r"\label{tab:uncertainty}",
-        r"\begin{tabular}{@{}lll" + "r" * len(SCORE_COLUMNS) + "@{}}",
-        r"\toprule",
-        " & ".join(["Protocol", "Source", "Method", *SCORE_COLUMNS.values()]) + r" \\",
-        r"\midrule",
+        r"0.90 is calibrated)."
+    )
+    rows = [
+        [escape(r.protocol), escape(r.source), escape(labels.get(r.method, r.method))]
+        + [
+            "" if v is None or not np.isfinite(v) else power_of_ten(v)
+            for v in (getattr(r, c) for c in SCORE_COLUMNS)
+        ]
+        for r in summary.itertuples(index=False)
     ]
-    for r in summary.itertuples(index=False):
-        cells = []
-        for c in SCORE_COLUMNS:
-            v = getattr(r, c)
-            cells.append("" if v is None or not np.isfinite(v) else _number(v))
-        out.append(
-            " & ".join(
-                [
-                    latex_escape(r.protocol),
-                    latex_escape(r.source),
-                    latex_escape(labels.get(r.method, r.method)),
-                ]
-                + cells
-            )
-            + r" \\"
-        )
-    out += [r"\bottomrule", r"\end{tabular}", r"\end{table}", ""]
-    return "\n".join(out)
+    text = table(
+        rows,
+        spec="@{}lll" + "r" * len(SCORE_COLUMNS) + "@{}",
+        head=[["Protocol", "Source", "Method", *SCORE_COLUMNS.values()]],
+        caption=caption,
+        label="tab:uncertainty",
+    )
+    return text + "\n"
 
 
 def standing(comp, *, today, pm="PM", alpha=0.05):
@@ -257,10 +240,10 @@ def section_latex(df, comp, *, methods, groups, labels, pit_figure=None, pm="PM"
         st = standing(comp, today=today, pm=pm)
         names = ", ".join(labels.get(m, m) for m in today)
         out += [
-            rf"Today's baselines ({latex_escape(names)}) are tuned by the same cross-validation as the paper's "
+            rf"Today's baselines ({escape(names)}) are tuned by the same cross-validation as the paper's "
             r"methods (Tables~I--II, second block).",
         ]
-        out += [latex_escape(t) for t in standing_sentences(st, labels=labels, pm=pm)]
+        out += [escape(t) for t in standing_sentences(st, labels=labels, pm=pm)]
         out.append("")
     for protocol in sorted(df["protocol"].unique()):
         for source in sorted(df["source"].unique()):
@@ -297,13 +280,24 @@ def section_latex(df, comp, *, methods, groups, labels, pit_figure=None, pm="PM"
         t,
     ]
     if pit_figure:
-        out += [
-            r"\begin{figure}[H]",
-            r"\centering",
-            rf"\includegraphics[width=\linewidth,height=0.35\textheight,keepaspectratio]{{{pit_figure}}}",
-            r"\caption{PIT histograms (all angles and test frames of every activity and seed at the largest "
-            r"N): flat at the dashed line for a calibrated forecast, U-shaped for an over-confident one.}",
-            r"\label{fig:pit}",
-            r"\end{figure}",
-        ]
+        out.append(
+            figure(
+                pit_figure,
+                r"PIT histograms (all angles and test frames of every activity and seed at the largest "
+                r"N): flat at the dashed line for a calibrated forecast, U-shaped for an over-confident one.",
+                options=r"width=\linewidth,height=0.35\textheight,keepaspectratio",
+                label="fig:pit",
+            )
+        )
     return "\n".join(out) + "\n"
+
+
+def pit_panels(arrays, keys):
+    """The PIT values of each panel of :func:`plot_pit`: ``{(source, method): values}``, pooled over the saved
+    fits ``arrays`` (one mapping per fit, e.g. from :func:`bsrbench.io.read_npz`) whose panels are ``keys``
+    (one (source, method) per fit); a fit without PIT values adds none."""
+    panels = {}
+    for a, key in zip(arrays, keys):
+        if "pit" in a:
+            panels.setdefault(tuple(key), []).append(np.asarray(a["pit"], dtype=float).ravel())
+    return {k: np.concatenate(v) for k, v in panels.items()}
