@@ -215,3 +215,46 @@ def test_bench_bsr_ab_help_and_a_malformed_size():
     )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr, bad.stderr
     assert "error: argument --sizes: '30-64': expected NxK, e.g. 30x64" in bad.stderr, bad.stderr
+
+
+def test_bin_study_interrupted_says_how_to_resume(tmp_path):
+    """Ctrl-C (SIGINT to the terminal's process group) during `bin/study`: the finished jobs' files are kept, the
+    last line says the run was interrupted and how to resume it, and the exit code is 130."""
+    import signal
+    import time
+
+    work = tmp_path / "study"
+    work.mkdir()
+    for name in ("Snakefile", "workflow", "profiles", "config", "bin"):
+        src = ROOT / name
+        (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
+    for name in ("requirements.lock", "pyproject.toml"):
+        shutil.copy(ROOT / name, work / name)
+    (work / "reports").mkdir()
+    shutil.copy(ROOT / "reports" / "report.tex", work / "reports" / "report.tex")
+    for name in ("resources", ".venv"):
+        (work / name).symlink_to(ROOT / name)
+    proc = subprocess.Popen(
+        ["bin/study", "--configfile", "config/ci.yaml"],
+        cwd=work,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+        env=dict(os.environ, BSRBENCH_NO_APT="1"),
+    )
+    done = []
+    deadline = time.monotonic() + 300
+    while not done and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.5)
+        done = [p for p in (work / "results").rglob("*.npz") if p.is_file()]
+    assert done, "no job finished within 300 s"
+    os.killpg(proc.pid, signal.SIGINT)
+    out, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 130, out[-3000:]
+    last = out.strip().splitlines()[-1]
+    assert last == (
+        "[study] interrupted: the finished jobs are kept; rerun the same command to resume: "
+        "bin/study --configfile config/ci.yaml"
+    ), out[-3000:]
+    assert all(p.is_file() for p in done)
