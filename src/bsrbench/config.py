@@ -34,6 +34,63 @@ MOTION_FORMATS = ("bvh", "amc")
 # ------------------------------------------------------------------------------------------- command line
 
 
+def configfile_args(argv):
+    """The files a snakemake argument list ``argv`` names with ``--configfile``/``--configfiles`` (each takes
+    the following arguments up to the next option, as Snakemake's parser does) or ``--configfile=FILE``."""
+    files, taking = [], False
+    for arg in argv:
+        arg = str(arg)
+        name, eq, value = arg.partition("=")
+        if name in ("--configfile", "--configfiles"):
+            taking = not eq
+            if eq:
+                files.append(value)
+        elif arg.startswith("-"):
+            taking = False
+        elif taking:
+            files.append(arg)
+    return files
+
+
+def configfile_problem(path):
+    """What is wrong with a ``--configfile`` file, one line (None if it exists, is readable and parses as a
+    YAML mapping). Snakemake reads these files before the Snakefile runs and answers a missing one with a
+    traceback, so ``bin/study`` asks this first."""
+    p = Path(path)
+    expected = "expected a YAML file such as config/paper.yaml"
+    if not p.exists():
+        return f"--configfile {path}: no such file; {expected}"
+    if not p.is_file():
+        return f"--configfile {path}: not a file; {expected}"
+    try:
+        data = yaml.safe_load(p.read_text())
+    except OSError as exc:
+        return f"--configfile {path}: cannot be read ({exc.strerror}); {expected}"
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        where = getattr(exc, "problem_mark", None)
+        line = f" at line {where.line + 1}" if where is not None else ""
+        return f"--configfile {path}: not valid YAML{line} ({str(exc).splitlines()[0]}); {expected}"
+    if data is not None and not isinstance(data, dict):
+        return (
+            f"--configfile {path}: holds a {type(data).__name__}, not a mapping of configuration keys; "
+            f"{expected}"
+        )
+    return None
+
+
+def or_exit(check, *args, **kwargs):
+    """``check(*args, **kwargs)``, or, on an InputError, its message on stderr and exit status 1: the
+    Snakefile's configuration checks end in one line, without the traceback Snakemake prints for an
+    exception raised while it reads the Snakefile."""
+    import sys
+
+    try:
+        return check(*args, **kwargs)
+    except InputError as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(1)
+
+
 def retype_cli_config(config, config_args, parsed):
     """Merge the ``--config`` list and mapping values of ``config_args`` into ``config``, read with YAML's
     safe loader (in place; returns ``config``).
@@ -267,6 +324,31 @@ def validate_config(config, schema_path, what):
 
 
 # ---------------------------------------------------------------------------------------------- methods
+def check_method_names(methods):
+    """Refuse, before the schema's "'estimator' is a required property", an entry of ``methods`` without an
+    estimator: a method the configuration files do not define (a misspelt name given params or a label by
+    ``--config`` or an override file). Raises InputError naming the key, the known methods and the closest one."""
+    import difflib
+
+    if not isinstance(methods, dict):
+        return
+    known = sorted(m for m, s in methods.items() if isinstance(s, dict) and "estimator" in s)
+    for name, setting in methods.items():
+        if isinstance(setting, dict) and "estimator" not in setting:
+            close = difflib.get_close_matches(str(name), known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(
+                f"config key 'methods.{name}': unknown method {name!r}{hint}; known methods: {known}; a new "
+                f"method needs an 'estimator' ('package.module:ClassName')"
+            )
+
+
+def method_cv(config, name):
+    """The CV of method ``name``: its own ``methods.<M>.cv`` ({mode, folds}) over the study's ``cv``."""
+    own = (config["methods"][name] or {}).get("cv") or {}
+    return {**config["cv"], **own}
+
+
 def check_method_settings(methods, run, *, n_train=None, cv=None):
     """Check, before any job runs, that every method in ``run`` can be built and fitted as configured.
 
@@ -277,7 +359,8 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
     (:func:`bsrbench.estimators.check_estimator_params`): ``params`` alone; with ``n_train`` (the training-set
     sizes) and ``cv`` (``{"mode", "folds"}``), every setting a job will fit: ``params`` updated with each grid
     point on the smallest N, and, when CV runs, ``params`` + ``cv_params`` + each grid point on the smallest
-    training fold (KFold: N - ceil(N / folds) rows); ``cv.folds`` must not exceed the smallest N.
+    training fold (KFold: N - ceil(N / folds) rows); ``cv.folds`` must not exceed the smallest N. A method's
+    own ``cv`` (:func:`method_cv`) replaces ``cv`` for it, and needs a grid unless its mode is none.
     Raises InputError naming the configuration key, the method, the value and what was expected.
     """
     from .estimators import default_grid, estimator_parameters, load_estimator_class
@@ -324,7 +407,17 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
                 raise InputError(
                     f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values"
                 )
-        _check_method_values(name, setting, path, grid or {}, where_grid, n_train=n_train, cv=cv)
+        own_cv = setting.get("cv") or {}
+        if own_cv and own_cv.get("mode") != "none" and not grid:
+            raise InputError(
+                f"config key 'methods.{name}.cv': {own_cv!r} asks for CV, but the method has no grid "
+                f"(methods.{name}.grid is {setting.get('grid', 'default')!r}); expected a grid "
+                f"{{parameter: [values]}} or 'default' with a DEFAULT_GRID, or no cv"
+            )
+        method_cv = None if cv is None else {**cv, **own_cv}
+        _check_method_values(
+            name, setting, path, grid or {}, where_grid, n_train=n_train, cv=method_cv
+        )
 
 
 def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
@@ -379,10 +472,11 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
     if not cv_runs:
         return
     folds = int(cv.get("folds", 5))
+    where_cv = f"methods.{name}.cv" if "folds" in (setting.get("cv") or {}) else "cv"
     if folds > n_min:
         raise InputError(
-            f"config key 'cv.folds': {folds} folds of the smallest n_train N = {n_min} (method {name} is tuned by "
-            f"CV, cv.mode {cv.get('mode')!r}) would leave empty folds; expected cv.folds <= {n_min}"
+            f"config key '{where_cv}.folds': {folds} folds of the smallest n_train N = {n_min} (method {name} is "
+            f"tuned by CV, mode {cv.get('mode')!r}) would leave empty folds; expected folds <= {n_min}"
         )
     n_fold = n_min - math.ceil(n_min / folds)
     for point in points:
@@ -394,7 +488,7 @@ def _check_method_values(name, setting, path, grid, where_grid, *, n_train, cv):
                 key,
                 exc,
                 f"the CV fits of grid point {shown(point)} over params {shown({**params, **cv_params})} "
-                f"on training folds of {n_fold} frames (N = {n_min}, cv.folds = {folds})",
+                f"on training folds of {n_fold} frames (N = {n_min}, {where_cv}.folds = {folds})",
             )
 
 
@@ -480,8 +574,9 @@ def check_datasets(datasets, codebook_files):
 
 
 def data_frames(entry):
-    """Frames a data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its BVH
-    trials give, counted from their headers; n_frames when that cannot be counted before the files exist."""
+    """Frames a data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its trials
+    give, counted from the BVH headers or the AMC frame lines; n_frames when that cannot be counted before the
+    files exist."""
     from .datasets import count_motion_frames
 
     n = int(entry["n_frames"])
@@ -490,6 +585,34 @@ def data_frames(entry):
         if have is not None:
             return min(n, have)
     return n
+
+
+def check_data_files(entry):
+    """Check, before any job runs, that the input files of a data set are here and pass their checksums
+    (``checksums`` of the entry); files a download rule fetches (``cmu_trials``) may be absent. Raises
+    InputError naming the data-set key, the file and what was expected."""
+    from .datasets import verify_checksum
+    from .errors import DataFileError
+
+    where = f"config datasets.{entry['source']}.{entry['activity']} (config/datasets.yaml)"
+    files = list(entry["files"])
+    if entry["format"] == "amc" and entry.get("asf"):
+        files.append(entry["asf"])
+    for f in files:
+        if not Path(f).is_file():
+            if entry["cmu_trials"]:
+                continue  # downloaded by rule download_cmu_amc / download_cmu_asf
+            raise InputError(
+                f"{where}: data file {f} does not exist; expected the file its `files` names (correct the "
+                f"path, or remove {entry['activity']!r} from study_activities.{entry['source']})"
+            )
+        checksums = entry["checksums"] if f in entry["files"] else None
+        try:
+            verify_checksum(f, checksums)
+        except DataFileError as exc:
+            raise InputError(
+                f"{where}: {exc}; expected the file its `checksums` ({checksums}) lists"
+            ) from None
 
 
 def features_path(source, activity):
@@ -519,7 +642,7 @@ def skipped_cells(frames, pairs, protocols, n_train, min_test, gap):
 
 
 def _check_study(config, datasets, cwd):
-    """The cross-checks of the study keys; returns the skipped cells. Raises ValueError naming the key."""
+    """The cross-checks of the study keys; returns the skipped cells. Raises InputError naming the key."""
     methods = config["methods"]
     check_method_settings(methods, config["run"], n_train=config["n_train"], cv=config["cv"])
     level = config.get("conformal_level")
@@ -529,7 +652,7 @@ def _check_study(config, datasets, cwd):
         # a finite split-conformal radius at this level needs this many calibration frames, and one to fit
         need = min_calibration_frames(level) + 1
         if min(config["n_train"]) < need:
-            raise ValueError(
+            raise InputError(
                 f"config key 'conformal_level': {level!r} needs at least {need} training frames (a finite "
                 f"split-conformal radius needs ceil(level / (1 - level)) = {need - 1} calibration frames), but "
                 f"n_train has {min(config['n_train'])}; lower conformal_level (at most "
@@ -538,40 +661,40 @@ def _check_study(config, datasets, cwd):
     report = config["report"]
     m = report.get("trace_method")
     if m is not None and m not in methods:
-        raise ValueError(
+        raise InputError(
             f"config key 'report.trace_method': unknown method {m!r}; defined under 'methods': {sorted(methods)}"
         )
     for m in report.get("gxy_methods") or []:
         if m not in config["run"]:
-            raise ValueError(
+            raise InputError(
                 f"config key 'report.gxy_methods': method {m!r} is not run; 'run' lists {config['run']}"
             )
     for m in report["subjective_methods"]:
         if m not in methods:
-            raise ValueError(
+            raise InputError(
                 f"config key 'report.subjective_methods': unknown method {m!r}; defined: {sorted(methods)}"
             )
     if not any(config["study_activities"].values()):
-        raise ValueError(
+        raise InputError(
             "config key 'study_activities': no activity to study (every source has an empty list)"
         )
     frames = {}
     for source, acts in config["study_activities"].items():
         known = [a for s, a in datasets if s == source]
         if not config.get("datasets"):
-            raise ValueError(
+            raise InputError(
                 f"config key 'datasets': empty, so config/datasets.yaml was not loaded from the working directory "
                 f"{cwd}; run snakemake in the repository (the folder of the Snakefile) or point "
                 f"--directory at it"
             )
         if not known:
-            raise ValueError(
+            raise InputError(
                 f"config key 'study_activities': unknown data source {source!r}; "
                 f"config/datasets.yaml defines {sorted(config.get('datasets') or {})}"
             )
         for a in acts:
             if a not in known:
-                raise ValueError(
+                raise InputError(
                     f"config key 'study_activities.{source}': unknown activity {a!r}; "
                     f"source {source!r} has {sorted(known)}"
                 )
@@ -579,11 +702,13 @@ def _check_study(config, datasets, cwd):
             if "cross_trial" in config["protocols"] and (
                 d["format"] not in MOTION_FORMATS or len(d["files"]) < 2
             ):
-                raise ValueError(
+                raise InputError(
                     f"config key 'protocols': cross_trial needs a motion-capture data set of several trials; "
                     f"{source}/{a} is format {d['format']!r} with "
                     f"{len(d['files'])} file(s) (study it with random or contiguous)"
                 )
+            if d["enabled"]:
+                check_data_files(d)
             frames[(source, a)] = data_frames(d)
     pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
     n_train, min_test, gap = config["n_train"], config["min_test"], config["gap"]
@@ -591,7 +716,7 @@ def _check_study(config, datasets, cwd):
     for protocol in config["protocols"]:
         for s, a in pairs:
             if all((protocol, s, a, int(n)) in skipped for n in n_train):
-                raise ValueError(
+                raise InputError(
                     f"config key 'study_activities.{s}': {a} has {frames[(s, a)]} frames, and every "
                     f"n_train {n_train} leaves fewer than min_test={min_test} test frames "
                     f"with protocol {protocol!r}; remove it, add a smaller n_train or lower min_test"
@@ -599,7 +724,7 @@ def _check_study(config, datasets, cwd):
         for n in n_train:
             if pairs and all((protocol, s, a, int(n)) in skipped for s, a in pairs):
                 where = ", ".join(f"{s}/{a} ({frames[(s, a)]} frames)" for s, a in pairs)
-                raise ValueError(
+                raise InputError(
                     f"config key 'n_train': {n} is too large for {where} with protocol {protocol!r}, "
                     f"min_test={min_test}, gap={gap}: no studied activity can use it"
                 )
@@ -702,7 +827,7 @@ class DataSets:
 
     def frame_protocol_text(self, source, activity):
         """How the data set's frames are chosen, as one sentence for the tables."""
-        from .datasets import bvh_header, frame_protocol
+        from .datasets import frame_protocol, motion_frame_time
 
         d = self.dataset(source, activity)
         if d["format"] not in MOTION_FORMATS:
@@ -710,8 +835,7 @@ class DataSets:
             if d["frame_selection"] == "first":
                 return f"rows of {name}, first {d['n_frames']}"
             return f"{d['n_frames']} rows of {name} spread evenly"
-        header = bvh_header(d["files"][0])
-        frame_time = header[1] if header else None
+        frame_time = motion_frame_time(d["files"][0])
         text = frame_protocol(
             d["frame_selection"], int(d["frame_step"]), int(d["n_frames"]), frame_time
         )
@@ -725,7 +849,7 @@ class DataSets:
         trial's skeleton), "authors" (input histogram and stick figures of the authors' skeleton) or None
         (angle profiles)."""
         d = self.dataset(source, activity)
-        if self.is_motion(source, activity) and all(str(f).endswith(".bvh") for f in d["files"]):
+        if self.is_motion(source, activity):
             return "bvh"
         if d.get("pose_convention") == "authors":
             return "authors"
@@ -951,9 +1075,14 @@ class Study:
             return default_grid(self.method(name)["estimator"])
         return grid
 
+    def method_cv(self, name):
+        """The CV of a method, ``{"mode", "folds"}``: its ``methods.<M>.cv`` over the study's ``cv``."""
+        return method_cv(self.config, name)
+
     def cv_seed(self, name, seed):
-        """The seed of the CV result a fit job reads; None when it reads none (cv.mode none, no grid)."""
-        mode = self.config["cv"]["mode"]
+        """The seed of the CV result a fit job reads; None when it reads none (the method's CV mode none, no
+        grid)."""
+        mode = self.method_cv(name)["mode"]
         if mode == "none" or self.grid(name) == {}:
             return None
         return self.first_seed if mode == "per_size" else seed
@@ -1062,10 +1191,11 @@ def load_datasets(config, *, schema_dir=SCHEMAS, config_args=None, parsed_args=N
 def load_study(data, *, schema_dir=SCHEMAS, cwd=".", validate=True):
     """The :class:`Study` of the configuration of ``data`` (:func:`load_datasets`), validated against the study
     schema (defaults filled in, in place) and cross-checked. ``cwd``: the working directory, named when
-    config/datasets.yaml was not found. Raises InputError or ValueError naming the key, its value and what
+    config/datasets.yaml was not found. Raises InputError naming the key, its value and what
     was expected.
     """
     config = data.config
+    check_method_names(config.get("methods"))
     if validate:
         validate_config(config, Path(schema_dir) / "config.schema.yaml", "configuration")
     skipped = _check_study(config, data.entries, cwd)

@@ -5,11 +5,13 @@ from pathlib import Path
 
 from snakemake.logging import logger
 
-from bsrbench.config import load_study
+from bsrbench.config import load_study, or_exit
 from bsrbench.splits import PROTOCOLS
 from bsrbench.results import check_report_is_current, design_change_message, report_arg
 
-STUDY = load_study(
+# A bad configuration stops here with its one-line message (or_exit), before any job runs.
+STUDY = or_exit(
+    load_study,
     DATA,
     schema_dir=Path(str(workflow.current_basedir)).parent / "schemas",
     cwd=os.getcwd(),
@@ -19,7 +21,11 @@ STUDY = load_study(
 RESULTS, LOGS, REPORTS = STUDY.results, STUDY.logs, STUDY.reports
 
 # `--report`: refuse a table of another design.
-check_report_is_current(STUDY, sys.argv)
+try:
+    check_report_is_current(STUDY, sys.argv)
+except ValueError as exc:  # an aggregate table of another design, an HTML file in another study's folder
+    print(exc, file=sys.stderr)
+    sys.exit(1)
 # Warn when the design changed under the same study name.
 if workflow.is_main_process and report_arg(sys.argv) is None:
     if message := design_change_message(STUDY):
@@ -142,6 +148,7 @@ def subjective_motion(wildcards):
         a: {
             "poses": f"results/mocap/{s}/{a}.npz",
             "files": list(dataset(s, a)["files"]),
+            "asf": dataset(s, a).get("asf"),
             "render": render_params(),
         }
         for a in config["study_activities"][s]

@@ -1,9 +1,11 @@
 # Data sets of config/datasets.yaml (bsrbench.config).
 from pathlib import Path
 
-from bsrbench.config import load_datasets
+from bsrbench.config import load_datasets, or_exit
 
-DATA = load_datasets(
+# A bad data-set configuration stops here with its one-line message.
+DATA = or_exit(
+    load_datasets,
     config,
     schema_dir=Path(str(workflow.current_basedir)).parent / "schemas",
     config_args=workflow.config_settings.config_args,

@@ -603,7 +603,7 @@ def subjective_figure(items, methods, *, labels, sticks, motion):
         return plot_subjective(panels, labels=labels)
     # only figures with stick figures need the skeletons and the renderer
     from ..authors import hsc_stick_figure
-    from ..mocap import parse_bvh
+    from ..mocap import read_trial, trial_pose_positions
     from ..render import render_silhouettes
 
     stick_panels = []
@@ -629,7 +629,7 @@ def subjective_figure(items, methods, *, labels, sticks, motion):
         k = int(pnl["frame"])
         tid = str(mo["trial_ids"][int(mo["trial_index"][k])])
         path = next(p for p in motion[a]["files"] if Path(p).stem == tid)
-        bvh = parse_bvh(path)
+        trial = read_trial(path, motion[a].get("asf"))
         tf = int(mo["trial_frames"][k])
         pj = [str(j) for j in mo["pose_joints"]]
         sil = render_silhouettes(
@@ -644,8 +644,10 @@ def subjective_figure(items, methods, *, labels, sticks, motion):
                 "frame": k,
                 "silhouette": sil,
                 "parents": mo["parents"],
-                "true": pose_positions(bvh, tf, pj, pnl["y_true"]),
-                "preds": {m: pose_positions(bvh, tf, pj, y) for m, y in pnl["preds"].items()},
+                "true": trial_pose_positions(trial, tf, pj, pnl["y_true"]),
+                "preds": {
+                    m: trial_pose_positions(trial, tf, pj, y) for m, y in pnl["preds"].items()
+                },
                 "errors": pnl["errors"],
             }
         )
