@@ -131,8 +131,11 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
     bad = tmp_path / "bad.yaml"
     bad.write_text(override + "\n")
     res = smk("-n", "--cores", "1", "--configfile", str(bad))
-    assert res.returncode != 0
-    assert re.search(message, res.stdout + res.stderr), res.stdout[-2000:] + res.stderr[-2000:]
+    out = res.stdout + res.stderr
+    assert res.returncode == 1
+    assert re.search(message, out), out[-4000:]
+    # one line: no traceback after it (before: 3-4 lines of `File ".../common.smk", line 15, in <module>`)
+    assert "Traceback" not in out and 'File "' not in out, out[-4000:]
 
 
 @pytest.mark.parametrize(
@@ -180,6 +183,7 @@ def test_schema_error_is_one_line_naming_the_key(override, message):
     assert res.returncode != 0
     assert len(out.splitlines()) < 30, out[-3000:]
     assert any(re.search(message, line) for line in out.splitlines()), out[-3000:]
+    assert "Traceback" not in out and 'File "' not in out, out[-3000:]
 
 
 def _readme_override_examples():

@@ -610,9 +610,7 @@ def check_data_files(entry):
         try:
             verify_checksum(f, checksums)
         except DataFileError as exc:
-            raise InputError(
-                f"{where}: {exc}; expected the file its `checksums` ({checksums}) lists"
-            ) from None
+            raise InputError(f"{where}: {exc}") from None
 
 
 def features_path(source, activity):

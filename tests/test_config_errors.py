@@ -1,0 +1,186 @@
+"""Bad input answered in one line before any job, without a traceback, on the real command lines: a missing or
+unreadable --configfile (bin/study), a data file that is missing or fails its checksum, an unknown method name,
+and the configuration check's own errors (snakemake -n in a copy of the workflow)."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
+ZEROS = "0" * 64
+
+
+def _yaml(path):
+    import yaml
+
+    return yaml.safe_load((ROOT / path).read_text())
+
+
+#: What the messages list: the configured methods, the hsc activities, the keys of the two schemas.
+METHODS = sorted(_yaml("config/config.yaml")["methods"])
+HSC = sorted(_yaml("config/datasets.yaml")["datasets"]["hsc"])
+KEYS = sorted(
+    {
+        *_yaml("workflow/schemas/config.schema.yaml")["properties"],
+        *_yaml("workflow/schemas/datasets.schema.yaml")["properties"],
+    }
+)
+DATASET_KEYS = sorted(_yaml("workflow/schemas/datasets.schema.yaml")["$defs"]["dataset"]["properties"])
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory):
+    """The workflow, profiles and configs in a fresh folder (resources linked), so that no result of the
+    working tree counts."""
+    work = tmp_path_factory.mktemp("workflow")
+    for name in ("Snakefile", "workflow", "profiles", "config"):
+        src = ROOT / name
+        (shutil.copytree if src.is_dir() else shutil.copy)(src, work / name)
+    (work / "resources").symlink_to(ROOT / "resources")
+    return work
+
+
+def run(args, cwd):
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    res = subprocess.run(args, cwd=cwd, capture_output=True, text=True, timeout=300, env=env)
+    return res.returncode, res.stdout + res.stderr
+
+
+def assert_one_line(out, message):
+    """``message`` is a whole line of ``out``, and nothing of a traceback is there."""
+    assert "Traceback" not in out, out[-3000:]
+    assert 'File "' not in out, out[-3000:]
+    assert message in out.splitlines(), out[-3000:]
+
+
+@pytest.mark.parametrize(
+    "config, message",
+    [
+        (
+            "methods={PMx: {label: x}}",
+            f"config key 'methods.PMx': unknown method 'PMx' (did you mean 'PM'?); known methods: {METHODS}; a "
+            "new method needs an 'estimator' ('package.module:ClassName')",
+        ),
+        (
+            "methods={Zebra: {params: {alpha: 1}}}",
+            f"config key 'methods.Zebra': unknown method 'Zebra'; known methods: {METHODS}; a new method needs "
+            "an 'estimator' ('package.module:ClassName')",
+        ),
+        (
+            "datasets={mocap: {walk: {files: [resources/cmu-mocap/nope.bvh]}}}",
+            "config datasets.mocap.walk (config/datasets.yaml): data file resources/cmu-mocap/nope.bvh does not "
+            "exist; expected the file its `files` names (correct the path, or remove 'walk' from "
+            "study_activities.mocap)",
+        ),
+        (
+            f"datasets={{hsc: {{acrobatics: {{checksums: '{ZEROS}'}}}}}}",
+            "config datasets.hsc.acrobatics (config/datasets.yaml): resources/paper-features/x4921.mat: checksum "
+            f"mismatch: expected sha256 {ZEROS} (from the configuration), got "
+            "5b6322db33aadbe313d61edab66a45e4a38baad5ccee48349a865c89cfb4bf1f",
+        ),
+        # the configuration check's own errors (before: followed by 3-4 lines of traceback)
+        (
+            "run=[PM, XGB]",
+            f"config key 'run': unknown method 'XGB'; defined under 'methods': {METHODS}",
+        ),
+        (
+            "study_activities={hsc: [juggling]}",
+            f"config key 'study_activities.hsc': unknown activity 'juggling'; source 'hsc' has {HSC}",
+        ),
+        (
+            "n_seed=3",
+            "configuration: unknown key 'n_seed' (value 3): Additional properties are not allowed ('n_seed' was "
+            f"unexpected); expected one of the keys {KEYS}",
+        ),
+        (
+            "datasets={hsc: {golf: {fromat: mat}}}",
+            "data sets (config/datasets.yaml): unknown key 'datasets.hsc.golf.fromat' (value 'mat'): Additional "
+            f"properties are not allowed ('fromat' was unexpected); expected one of the keys {DATASET_KEYS}",
+        ),
+    ],
+    ids=["misspelt-method", "unknown-method", "missing-data-file", "checksum", "run", "activity",
+         "schema", "datasets-schema"],
+)
+def test_configuration_error_is_one_line(work, config, message):
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--config", config], work)
+    assert rc == 1, out[-3000:]
+    assert_one_line(out, message)
+
+
+def test_configuration_error_lines_name_only_the_problem(work):
+    """Snakemake's own lines around ours are the profile and config-merge notes, nothing of a job."""
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--config", "run=[PM, XGB]"], work)
+    assert rc == 1
+    assert "Building DAG" not in out and "MissingInputException" not in out, out
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (None, "[study] --configfile config/nope.yaml: no such file; expected a YAML file such as config/paper.yaml"),
+        (
+            lambda p: p.write_text("n_train: [30\n"),
+            "[study] --configfile config/nope.yaml: not valid YAML at line 2 (while parsing a flow sequence); "
+            "expected a YAML file such as config/paper.yaml",
+        ),
+        (
+            lambda p: p.write_text("- 30\n"),
+            "[study] --configfile config/nope.yaml: holds a list, not a mapping of configuration keys; expected "
+            "a YAML file such as config/paper.yaml",
+        ),
+        (
+            lambda p: p.mkdir(),
+            "[study] --configfile config/nope.yaml: not a file; expected a YAML file such as config/paper.yaml",
+        ),
+    ],
+    ids=["missing", "not-yaml", "not-a-mapping", "folder"],
+)
+def test_bin_study_checks_its_configfiles(work, make, message):
+    """Snakemake loads --configfile before the Snakefile and answers a missing file with a traceback ending in
+    FileNotFoundError; bin/study checks every file first (exit 2)."""
+    bad = ROOT / "config" / "nope.yaml"
+    assert not bad.exists()
+    try:
+        if make:
+            make(bad)
+        for args in (
+            ["-n", "--configfile", "config/nope.yaml"],
+            ["-n", "--configfiles", "config/ci.yaml", "config/nope.yaml", "--cores", "1"],
+            ["-n", "--configfile=config/nope.yaml"],
+        ):
+            rc, out = run([str(ROOT / "bin" / "study"), *args], ROOT)
+            assert rc == 2, out[-3000:]
+            assert_one_line(out, message)
+    finally:
+        if bad.is_dir():
+            bad.rmdir()
+        else:
+            bad.unlink(missing_ok=True)
+
+
+def test_bin_study_reports_an_unreadable_configfile(tmp_path):
+    if os.geteuid() == 0:
+        pytest.skip("root reads any file")
+    bad = tmp_path / "secret.yaml"
+    bad.write_text("n_seeds: 1\n")
+    bad.chmod(0)
+    rc, out = run([str(ROOT / "bin" / "study"), "-n", "--configfile", str(bad)], ROOT)
+    assert rc == 2
+    assert_one_line(
+        out,
+        f"[study] --configfile {bad}: cannot be read (Permission denied); expected a YAML file such as "
+        "config/paper.yaml",
+    )
+
+
+def test_configfile_args_reads_snakemakes_forms():
+    from bsrbench.config import configfile_args
+
+    argv = ["-n", "--configfile", "a.yaml", "b.yaml", "--cores", "2", "--configfiles=c.yaml", "target"]
+    assert configfile_args(argv) == ["a.yaml", "b.yaml", "c.yaml"]
+    assert configfile_args(["--config", "study=x", "all"]) == []
