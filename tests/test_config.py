@@ -728,3 +728,74 @@ def test_conformal_settings_per_method():
     assert _study(conformal_level=None).conformal("PM") is None
     assert _study(**{"methods.PM.conformal": False}).conformal("PM") is None
     assert _study(conformal_level=0.8).conformal("RVM")["level"] == 0.8
+
+
+def test_a_method_can_ask_for_its_own_cv():
+    """methods.<M>.cv replaces the study's cv for that method alone: with cv.mode none, Ridge is tuned (its fits
+    read the first seed's CV with per_size, their own seed's with per_job) and NN1 is not."""
+    study = _study(
+        **{
+            "cv": {"mode": "none", "folds": 5},
+            "methods.Ridge.cv": {"mode": "per_size", "folds": 3},
+            "methods.Ridge.grid": {"alpha": [0.1, 10.0]},
+        }
+    )
+    assert study.method_cv("Ridge") == {"mode": "per_size", "folds": 3}
+    assert study.method_cv("NN1") == {"mode": "none", "folds": 5}
+    assert [study.cv_seed("Ridge", s) for s in (0, 2)] == [0, 0]
+    assert study.cv_seed("NN1", 2) is None
+    # folds default to the study's; per_job reads each seed's own CV
+    study = _study(**{"methods.Ridge.cv": {"mode": "per_job"}})
+    assert study.method_cv("Ridge") == {"mode": "per_job", "folds": 5}
+    assert study.cv_seed("Ridge", 2) == 2
+    # and a method can opt out of the study's CV
+    study = _study(**{"cv": {"mode": "per_size", "folds": 2}, "methods.Ridge.cv": {"mode": "none"}})
+    assert study.cv_seed("Ridge", 1) is None and study.cv_seed("PM", 1) == 0
+
+
+@pytest.mark.parametrize(
+    "cv, grid, message",
+    [
+        (
+            {"mode": "sometimes"},
+            "default",
+            r"^configuration: key 'methods\.Ridge\.cv\.mode', value 'sometimes': not one of the allowed values; "
+            r"expected one of \['per_size', 'per_job', 'none'\]$",
+        ),
+        (
+            {"mode": "per_size", "folds": 1},
+            "default",
+            r"^configuration: key 'methods\.Ridge\.cv\.folds', value 1: 1 is less than the minimum of 2; "
+            r"expected minimum: 2 \(Number of CV folds\.\)$",
+        ),
+        (
+            {"folds": 3},
+            "default",
+            r"^configuration: key 'methods\.Ridge\.cv', value \{'folds': 3\}: 'mode' is a required property",
+        ),
+        (
+            {"mode": "per_size", "foldz": 3},
+            "default",
+            r"^configuration: unknown key 'methods\.Ridge\.cv\.foldz'",
+        ),
+        (
+            {"mode": "per_size"},
+            None,
+            r"^config key 'methods\.Ridge\.cv': \{'mode': 'per_size'\} asks for CV, but the method has no grid "
+            r"\(methods\.Ridge\.grid is None\); expected a grid \{parameter: \[values\]\} or 'default' with a "
+            r"DEFAULT_GRID, or no cv$",
+        ),
+        (
+            {"mode": "per_size", "folds": 31},
+            "default",
+            r"^config key 'methods\.Ridge\.cv\.folds': 31 folds of the smallest n_train N = 30 \(method Ridge is "
+            r"tuned by CV, mode 'per_size'\) would leave empty folds; expected folds <= 30$",
+        ),
+    ],
+    ids=["mode", "folds<2", "no-mode", "typo", "no-grid", "folds>N"],
+)
+def test_a_methods_cv_is_validated(cv, grid, message):
+    from bsrbench.errors import InputError
+
+    with pytest.raises(InputError, match=message):
+        _study(**{"methods.Ridge.cv": cv, "methods.Ridge.grid": grid, "n_train": [30, 100]})
