@@ -30,7 +30,9 @@ KEYS = sorted(
         *_yaml("workflow/schemas/datasets.schema.yaml")["properties"],
     }
 )
-DATASET_KEYS = sorted(_yaml("workflow/schemas/datasets.schema.yaml")["$defs"]["dataset"]["properties"])
+DATASET_KEYS = sorted(
+    _yaml("workflow/schemas/datasets.schema.yaml")["$defs"]["dataset"]["properties"]
+)
 
 
 @pytest.fixture(scope="module")
@@ -103,8 +105,16 @@ def assert_one_line(out, message):
             f"properties are not allowed ('fromat' was unexpected); expected one of the keys {DATASET_KEYS}",
         ),
     ],
-    ids=["misspelt-method", "unknown-method", "missing-data-file", "checksum", "run", "activity",
-         "schema", "datasets-schema"],
+    ids=[
+        "misspelt-method",
+        "unknown-method",
+        "missing-data-file",
+        "checksum",
+        "run",
+        "activity",
+        "schema",
+        "datasets-schema",
+    ],
 )
 def test_configuration_error_is_one_line(work, config, message):
     rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--config", config], work)
@@ -122,7 +132,10 @@ def test_configuration_error_lines_name_only_the_problem(work):
 @pytest.mark.parametrize(
     "make, message",
     [
-        (None, "[study] --configfile config/nope.yaml: no such file; expected a YAML file such as config/paper.yaml"),
+        (
+            None,
+            "[study] --configfile config/nope.yaml: no such file; expected a YAML file such as config/paper.yaml",
+        ),
         (
             lambda p: p.write_text("n_train: [30\n"),
             "[study] --configfile config/nope.yaml: not valid YAML at line 2 (while parsing a flow sequence); "
@@ -181,6 +194,15 @@ def test_bin_study_reports_an_unreadable_configfile(tmp_path):
 def test_configfile_args_reads_snakemakes_forms():
     from bsrbench.config import configfile_args
 
-    argv = ["-n", "--configfile", "a.yaml", "b.yaml", "--cores", "2", "--configfiles=c.yaml", "target"]
+    argv = [
+        "-n",
+        "--configfile",
+        "a.yaml",
+        "b.yaml",
+        "--cores",
+        "2",
+        "--configfiles=c.yaml",
+        "target",
+    ]
     assert configfile_args(argv) == ["a.yaml", "b.yaml", "c.yaml"]
     assert configfile_args(["--config", "study=x", "all"]) == []

@@ -59,7 +59,8 @@ def test_only_the_method_with_its_own_cv_gets_cv_jobs(work):
     targets = [FIT.format(m=m, s=s) for m in ("NN1", "Ridge") for s in (0, 1)]
     rc, out = smk(work, "-n", "--cores", "2", *targets)
     assert rc == 0, out[-3000:]
-    assert re.search(r"^cv\s+1$", out, re.M), out[-3000:]  # per_size: one CV job for Ridge, none for NN1
+    # per_size: one CV job for Ridge, none for NN1
+    assert re.search(r"^cv\s+1$", out, re.M), out[-3000:]
     planned = set(re.findall(r"results/ownCV/cv/\S+?\.json", out))
     assert planned == {CV.format(m="Ridge", s=0)}, planned
 

@@ -23,7 +23,8 @@ RESULTS, LOGS, REPORTS = STUDY.results, STUDY.logs, STUDY.reports
 # `--report`: refuse a table of another design.
 try:
     check_report_is_current(STUDY, sys.argv)
-except ValueError as exc:  # an aggregate table of another design, an HTML file in another study's folder
+# an aggregate table of another design, an HTML file in another study's folder
+except ValueError as exc:
     print(exc, file=sys.stderr)
     sys.exit(1)
 # Warn when the design changed under the same study name.
