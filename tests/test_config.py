@@ -799,3 +799,14 @@ def test_a_methods_cv_is_validated(cv, grid, message):
 
     with pytest.raises(InputError, match=message):
         _study(**{"methods.Ridge.cv": cv, "methods.Ridge.grid": grid, "n_train": [30, 100]})
+
+
+def test_amc_trials_get_stick_figures_and_their_frame_rate():
+    """An AMC data set (navigate, CMU 09_12) is drawn with silhouette and stick figures like a BVH one, and its
+    frame protocol reads the AMC's 120 fps (before: BVH headers only, so no stick figures and no rate)."""
+    data = _study().data
+    assert data.stick_kind("mocap", "navigate") == data.stick_kind("mocap", "walk") == "bvh"
+    assert data.stick_kind("hsc", "golf") == "authors"
+    assert data.frame_protocol_text("mocap", "navigate").startswith(
+        "one frame in 4 of the 120 fps trials (30 fps)"
+    )
