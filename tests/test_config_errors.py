@@ -85,6 +85,12 @@ def assert_one_line(out, message):
             f"mismatch: expected sha256 {ZEROS} (from the configuration), got "
             "5b6322db33aadbe313d61edab66a45e4a38baad5ccee48349a865c89cfb4bf1f",
         ),
+        (
+            "features={codebook: {files: [resources/cmu-mocap/codebook/nope.bvh]}}",
+            "config features.codebook.files (config/datasets.yaml): codebook trial "
+            "resources/cmu-mocap/codebook/nope.bvh does not exist; expected the BVH/AMC trials the "
+            "shape-context codebook of the motion-capture features is built from",
+        ),
         # the configuration check's own errors (before: followed by 3-4 lines of traceback)
         (
             "run=[PM, XGB]",
@@ -110,6 +116,7 @@ def assert_one_line(out, message):
         "unknown-method",
         "missing-data-file",
         "checksum",
+        "codebook",
         "run",
         "activity",
         "schema",

@@ -613,6 +613,25 @@ def check_data_files(entry):
             raise InputError(f"{where}: {exc}") from None
 
 
+def check_codebook_files(codebook):
+    """Check that the codebook trials (``features.codebook``), which the motion-capture features are encoded
+    over, are here and pass their checksums. Raises InputError naming the key, the file and what was expected."""
+    from .datasets import verify_checksum
+    from .errors import DataFileError
+
+    where = "config features.codebook.files (config/datasets.yaml)"
+    for f in codebook["files"]:
+        if not Path(f).is_file():
+            raise InputError(
+                f"{where}: codebook trial {f} does not exist; expected the BVH/AMC trials the shape-context "
+                f"codebook of the motion-capture features is built from"
+            )
+        try:
+            verify_checksum(f, codebook.get("checksums"))
+        except DataFileError as exc:
+            raise InputError(f"{where}: {exc}") from None
+
+
 def features_path(source, activity):
     return f"results/features/{source}/{activity}.npz"
 
@@ -709,6 +728,8 @@ def _check_study(config, datasets, cwd):
                 check_data_files(d)
             frames[(source, a)] = data_frames(d)
     pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
+    if any(datasets[p]["enabled"] and datasets[p]["format"] in MOTION_FORMATS for p in pairs):
+        check_codebook_files(config["features"]["codebook"])
     n_train, min_test, gap = config["n_train"], config["min_test"], config["gap"]
     skipped = skipped_cells(frames, pairs, config["protocols"], n_train, min_test, gap)
     for protocol in config["protocols"]:
