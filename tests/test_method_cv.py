@@ -77,3 +77,25 @@ def test_the_fits_use_their_methods_cv(work):
         nn1 = json.loads((work / FIT.format(m="NN1", s=seed)).read_text())
         assert nn1["cv"] == "none", nn1
     assert not (work / "results" / "ownCV" / "cv" / "random" / "hsc" / "golf" / "NN1").exists()
+
+
+def test_the_report_says_which_methods_were_tuned():
+    import pandas as pd
+
+    from bsrbench.reporting.study_setup import setup_text
+
+    row = dict(source="hsc", activity="golf", paper_activity="Golf", seed=0, n_train=30)
+    row.update(protocol="random", pose_transform="heading")
+    df = pd.DataFrame(
+        [{**row, "method": "NN1", "cv": "none"}, {**row, "method": "Ridge", "cv": "per_size"}]
+    )
+    text = setup_text(df, labels={"NN1": "1-NN", "Ridge": "Ridge"})[-1]
+    assert text.startswith(
+        "Hyper-parameters: 1-NN: as configured (no cross-validation); Ridge: chosen by cross-validation once "
+        "per activity, method and $N$"
+    ), text
+    assert "\\texttt{methods.*.cv}" in text
+    one = setup_text(df.assign(cv="none"), labels={"NN1": "1-NN", "Ridge": "Ridge"})[-1]
+    assert one.startswith(
+        "Hyper-parameters: as configured (no cross-validation) (configuration key \\texttt{cv.mode}: none). "
+    ), one

@@ -85,6 +85,21 @@ def parameters_table(df, *, labels, defaults):
     )
 
 
+def _cv_text(df, cv, how, labels):
+    """How the hyper-parameters were chosen; per method when methods had CV modes of their own
+    (``methods.<M>.cv``)."""
+    if len(cv) <= 1:
+        mode = cv[0] if cv else "none"
+        return (
+            f"{how.get(mode, escape(mode))} (configuration key \\texttt{{cv.mode}}: {escape(mode)})"
+        )
+    parts = []
+    for mode in cv:
+        names = [escape(labels.get(m, m)) for m in method_order(df[df["cv"] == mode], labels)]
+        parts.append(f"{', '.join(names)}: {how.get(mode, escape(mode))}")
+    return "; ".join(parts) + " (configuration keys \\texttt{cv.mode} and \\texttt{methods.*.cv})"
+
+
 def setup_text(df, *, labels):
     """Sentences describing what was run (computed from the aggregate table)."""
     sources = {}
@@ -109,10 +124,6 @@ def setup_text(df, *, labels):
         f"Training sizes $N \\in \\{{{', '.join(str(n) for n in sizes)}\\}}$, {len(seeds)} {splits} per size; "
         f"protocol: {escape(', '.join(sorted(df['protocol'].unique())))}; "
         f"pose transform: {escape(', '.join(sorted(df['pose_transform'].unique())))}.",
-        "Hyper-parameters: "
-        + "; ".join(how.get(c, escape(c)) for c in cv or ["none"])
-        + " (configuration key \\texttt{cv.mode}: "
-        + escape(", ".join(cv) or "none")
-        + "). "
+        "Hyper-parameters: " + _cv_text(df, cv, how, labels) + ". "
         "Table~\\ref{tab:parameters} lists the parameters each method ran with.",
     ]
