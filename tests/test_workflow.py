@@ -339,6 +339,7 @@ def test_the_html_report_goes_to_the_study_folder(args, tmp_path):
     out = res.stdout + res.stderr
     assert res.returncode != 0, out[-3000:]
     assert "the HTML report of study 'ci' goes to its report folder reports/ci/" in out, out[-3000:]
+    assert "Traceback" not in out and 'File "' not in out, out[-3000:]  # one line
     assert not list((tmp_path / "reports").rglob("*.html"))
 
 
