@@ -20,6 +20,7 @@ from bsrbench.reporting.comparisons import (
     comparisons,
     corrected_t,
     holm,
+    paired_t,
     pm_counts,
     published,
     tied_with_best,
@@ -55,6 +56,19 @@ def test_corrected_t_without_the_correction_is_scipy_ttest():
     assert p == pytest.approx(ref.pvalue, rel=1e-9)
     ci = ref.confidence_interval(0.95)
     assert (lo, hi) == pytest.approx((ci.low, ci.high), rel=1e-9)
+
+
+def test_paired_t_is_scipy_ttest_rel():
+    a = np.array([5.1, 4.8, 6.0, 5.5, 5.2, 4.9])
+    b = np.array([4.9, 4.9, 5.2, 5.0, 5.1, 4.2])
+    mean, lo, hi, p = paired_t(a - b)
+    ref = stats.ttest_rel(a, b)
+    ci = ref.confidence_interval(0.95)
+    assert mean == pytest.approx(float(np.mean(a - b)))
+    assert p == pytest.approx(ref.pvalue, rel=1e-9)
+    assert (lo, hi) == pytest.approx((ci.low, ci.high), rel=1e-9)
+    with pytest.raises(InputError, match="paired t-test needs at least 2 paired splits; got 1"):
+        paired_t([1.0])
 
 
 def test_corrected_t_is_wider_than_the_plain_t():
@@ -153,7 +167,7 @@ def test_cell_compares_with_pm_and_the_best_with_holm_over_the_cell():
     assert set(c["best"]) == {"A"}
     # each row by hand
     e = {"PM": np.array(pm), "A": np.array(a), "B": np.array(b)}
-    raw = {}
+    raw, raw_plain = {}, {}
     for r in c.itertuples():
         d = e[r.method] - e[r.versus]
         mean, lo, hi, p = corrected_t(d, n_train=30, n_test=60)
@@ -161,15 +175,21 @@ def test_cell_compares_with_pm_and_the_best_with_holm_over_the_cell():
             (mean, lo, hi, p)
         )
         assert r.p_wilcoxon == pytest.approx(stats.wilcoxon(d).pvalue)
+        assert r.p_paired_t == pytest.approx(stats.ttest_1samp(d, 0.0).pvalue)
         raw[frozenset((r.method, r.versus))] = p
+        raw_plain[frozenset((r.method, r.versus))] = r.p_paired_t
     # Holm over the 3 distinct pairs {A, PM}, {B, PM}, {A, B}: sorted p times 3, 2, 1, running maximum
-    keys = sorted(raw, key=raw.get)
-    adj, run = {}, 0.0
-    for i, k in enumerate(keys):
-        run = max(run, min(1.0, (3 - i) * raw[k]))
-        adj[k] = run
+    def by_hand(raw):
+        adj, run = {}, 0.0
+        for i, k in enumerate(sorted(raw, key=raw.get)):
+            run = max(run, min(1.0, (3 - i) * raw[k]))
+            adj[k] = run
+        return adj
+
+    adj, adj_plain = by_hand(raw), by_hand(raw_plain)
     for r in c.itertuples():
         assert r.p_holm == pytest.approx(adj[frozenset((r.method, r.versus))])
+        assert r.p_holm_paired == pytest.approx(adj_plain[frozenset((r.method, r.versus))])
     pa = c[(c.method == "PM") & (c.versus == "A")].iloc[0]
     ap = c[(c.method == "A") & (c.versus == "PM")].iloc[0]
     assert pa.p_holm == ap.p_holm and pa.mean_diff == -ap.mean_diff
@@ -228,10 +248,16 @@ def test_ties_and_counts():
         ),
     ]
     c = comparisons(pd.concat(frames, ignore_index=True))
-    ties = tied_with_best(c)
+    ties = tied_with_best(c, test="corrected")
     assert "PM" not in ties[("random", "hsc", "walk", 30)]
     assert ties[("random", "hsc", "run", 30)] == {"A", "PM"}
-    t = pm_counts(c).set_index("versus")
+    # on these frames PM's 0.2 deg gap to A is consistent over the splits: worse by the plain paired test
+    assert tied_with_best(c)[("random", "hsc", "run", 30)] == {"A"}
+    plain = pm_counts(c).set_index("versus")
+    assert plain.loc["best", ["cells", "worse", "tied", "better"]].tolist() == [2, 2, 0, 0]
+    with pytest.raises(InputError, match="unknown per-cell test 'plain'"):
+        pm_counts(c, test="plain")
+    t = pm_counts(c, test="corrected").set_index("versus")
     assert t.loc["best", ["cells", "worse", "tied", "better"]].tolist() == [2, 1, 1, 0]
     assert t.loc["NN1", ["cells", "worse", "better"]].tolist() == [2, 1, 1]
     # the Wilcoxon test alone: PM worse than A in every split of both cells (p = 2/1024 with 10 splits)

@@ -56,6 +56,10 @@ PUBLISHED_COLUMNS = CELL + [
     "p_corrected_t",
     "p_wilcoxon",
     "p_holm",
+    "paired_ci_low",
+    "paired_ci_high",
+    "p_paired_t",
+    "p_holm_paired",
     "p_better",
     "p_rope",
     "p_worse",
@@ -63,6 +67,30 @@ PUBLISHED_COLUMNS = CELL + [
 #: The aggregate's comparisons.csv: the published columns, the cell's best method and a note.
 COLUMNS = PUBLISHED_COLUMNS + ["best", "note"]
 NO_TEST = "fewer than 2 common splits: no test"
+#: The two per-cell tests, by the question each answers: the Holm-adjusted p-value column, the test's name and the
+#: question. ``paired`` is the verdict on a cell's frames; ``corrected`` is the sensitivity to the assumption of a
+#: new data set of independent frames.
+TESTS = {
+    "paired": {
+        "column": "p_holm_paired",
+        "name": "paired t-test over splits",
+        "question": "on these frames",
+    },
+    "corrected": {
+        "column": "p_holm",
+        "name": "corrected resampled t-test (Nadeau and Bengio 2003)",
+        "question": "on a new data set of independent frames",
+    },
+}
+#: The test of the tie marks of Tables I-II and of the README's counts.
+TIE_TEST = "paired"
+
+
+def test_column(test):
+    """The Holm-adjusted p-value column of a per-cell test (:data:`TESTS`); InputError for an unknown test."""
+    if test not in TESTS:
+        raise InputError(f"unknown per-cell test {test!r}; expected one of {sorted(TESTS)}")
+    return TESTS[test]["column"]
 
 
 def _float_array(x, name):
@@ -72,28 +100,49 @@ def _float_array(x, name):
     return a
 
 
+def _t_test(d, factor, level):
+    """Mean, ``level`` interval and two-sided p of a t-test of the differences ``d`` whose mean has the variance
+    ``factor * s^2`` on ``J - 1`` degrees of freedom (all differences equal: p = 1 if they are 0, else 0)."""
+    J = d.size
+    mean = float(d.mean())
+    se = math.sqrt(factor * float(d.var(ddof=1)))
+    if se == 0.0 or not np.isfinite(se):
+        return mean, mean, mean, 1.0 if mean == 0.0 else 0.0
+    p = float(2.0 * stats.t.sf(abs(mean / se), J - 1))
+    h = float(stats.t.ppf(0.5 + level / 2.0, J - 1)) * se
+    return mean, mean - h, mean + h, p
+
+
+def _splits(d, what):
+    d = _float_array(d, "d")
+    if d.size < 2:
+        raise InputError(f"the {what} needs at least 2 paired splits; got {d.size}")
+    return d
+
+
+def paired_t(d, *, level=0.95):
+    """Plain paired t-test of the differences ``d`` (one per split): ``(mean, ci_low, ci_high, p)`` with the
+    variance ``s^2 / J``. It answers "is the method better on these frames": given the cell's frames the random
+    splits are independent draws of a training set, so their differences are independent. InputError for fewer
+    than 2 differences."""
+    d = _splits(d, "paired t-test")
+    return _t_test(d, 1.0 / d.size, level)
+
+
 def corrected_t(d, *, n_train, n_test, level=0.95):
     """Nadeau-Bengio corrected resampled t-test of paired differences ``d`` (one per split).
 
     Returns ``(mean, ci_low, ci_high, p)``: the mean difference, its ``level`` interval and the two-sided p-value
-    of "mean difference 0", with the variance ``(1/J + n_test/n_train) s^2`` and ``J - 1`` degrees of freedom.
-    With all differences equal the variance is 0: p = 1 and a zero-width interval if they are 0, p = 0 otherwise.
-    InputError for fewer than 2 differences or non-positive sizes.
+    of "mean difference 0", with the variance ``(1/J + n_test/n_train) s^2`` and ``J - 1`` degrees of freedom. It
+    targets a new data set drawn from the same population, assuming independent frames (which the frames of one
+    motion are not): a sensitivity check, not the verdict. With all differences equal the variance is 0: p = 1 and
+    a zero-width interval if they are 0, p = 0 otherwise. InputError for fewer than 2 differences or non-positive
+    sizes.
     """
-    d = _float_array(d, "d")
-    J = d.size
-    if J < 2:
-        raise InputError(f"the corrected t-test needs at least 2 paired splits; got {J}")
+    d = _splits(d, "corrected t-test")
     if not (n_train > 0 and n_test > 0):
         raise InputError(f"n_train and n_test must be > 0; got {n_train}, {n_test}")
-    mean = float(d.mean())
-    se = math.sqrt((1.0 / J + n_test / n_train) * float(d.var(ddof=1)))
-    if se == 0.0 or not np.isfinite(se):
-        return mean, mean, mean, 1.0 if mean == 0.0 else 0.0
-    t = mean / se
-    p = float(2.0 * stats.t.sf(abs(t), J - 1))
-    h = float(stats.t.ppf(0.5 + level / 2.0, J - 1)) * se
-    return mean, mean - h, mean + h, p
+    return _t_test(d, 1.0 / d.size + n_test / n_train, level)
 
 
 def bayes_correlated_t(d, *, n_train, n_test, rope=ROPE):
@@ -142,6 +191,9 @@ def compare_pair(a, b, *, n_train, n_test, rope=ROPE):
             "ci_low",
             "ci_high",
             "p_corrected_t",
+            "paired_ci_low",
+            "paired_ci_high",
+            "p_paired_t",
             "p_wilcoxon",
             "p_better",
             "p_rope",
@@ -151,12 +203,16 @@ def compare_pair(a, b, *, n_train, n_test, rope=ROPE):
         out["note"] = NO_TEST
         return out
     mean, lo, hi, p = corrected_t(d, n_train=n_train, n_test=n_test)
+    _, plo, phi, pp = paired_t(d)
     pb, pr, pw = bayes_correlated_t(d, n_train=n_train, n_test=n_test, rope=rope)
     out.update(
         mean_diff=mean,
         ci_low=lo,
         ci_high=hi,
         p_corrected_t=p,
+        paired_ci_low=plo,
+        paired_ci_high=phi,
+        p_paired_t=pp,
         p_wilcoxon=wilcoxon_p(d),
         p_better=pb,
         p_rope=pr,
@@ -231,13 +287,16 @@ def cell_comparisons(cell, *, n_train, pm="PM", rope=ROPE):
                 )
             )
             key = frozenset((m, ref))
-            pairs.setdefault(key, r["p_corrected_t"])
+            pairs.setdefault(key, (r["p_corrected_t"], r["p_paired_t"]))
             r["_pair"] = key
             rows.append(r)
     keys = list(pairs)
-    adjusted = dict(zip(keys, holm([pairs[k] for k in keys])))
+    corrected = dict(zip(keys, holm([pairs[k][0] for k in keys])))
+    plain = dict(zip(keys, holm([pairs[k][1] for k in keys])))
     for r in rows:
-        r["p_holm"] = float(adjusted[r.pop("_pair")])
+        key = r.pop("_pair")
+        r["p_holm"] = float(corrected[key])
+        r["p_holm_paired"] = float(plain[key])
     return rows
 
 
@@ -267,17 +326,18 @@ def published(comp):
 
 
 # ----------------------------------------------------------------------------------------- verdicts and ties
-def tied_with_best(comp, *, alpha=ALPHA):
+def tied_with_best(comp, *, alpha=ALPHA, test=TIE_TEST):
     """{(protocol, source, activity, n_train): {method, ...}}: the cell's best method and the methods statistically
-    indistinguishable from it (Holm-adjusted corrected-t p >= ``alpha`` against it). Methods of a cell with no test
+    indistinguishable from it (Holm-adjusted p of ``test`` >= ``alpha`` against it, :data:`TESTS`). Methods of a cell with no test
     (fewer than 2 common splits) are left out: nothing is claimed for them, and a cell with no test at all has no
     entry."""
     out = {}
     if comp.empty:
         return out
-    c = comp[(comp["versus"] == comp["best"]) & comp["p_holm"].notna()]
+    col = test_column(test)
+    c = comp[(comp["versus"] == comp["best"]) & comp[col].notna()]
     for key, g in c.groupby(CELL, sort=False):
-        out[tuple(key)] = set(g.loc[g["p_holm"] >= alpha, "method"]) | {g["best"].iloc[0]}
+        out[tuple(key)] = set(g.loc[g[col] >= alpha, "method"]) | {g["best"].iloc[0]}
     return out
 
 
@@ -291,9 +351,9 @@ def verdict(p_holm, mean_diff, *, alpha=ALPHA):
     return "better" if mean_diff < 0 else "worse"
 
 
-def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
+def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA, test=TIE_TEST):
     """Per (protocol, source) and opponent ("best", ``nn``): in how many cells PM is significantly worse, tied or
-    better (Holm-adjusted corrected t), and untested. Against the best: cells where PM is the best count as
+    better (Holm-adjusted p of ``test``, :data:`TESTS`), and untested. Against the best: cells where PM is the best count as
     "PM is best" (``pm_best``). ``worse_wilcoxon``: the cells where PM is worse by the Wilcoxon signed-rank test
     alone (p < ``alpha``, no allowance for overlapping splits, no correction), for contrast. A DataFrame with
     protocol, source, versus, cells, worse, tied, better, untested, pm_best, worse_wilcoxon."""
@@ -309,6 +369,7 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
         "pm_best",
         "worse_wilcoxon",
     ]
+    col = test_column(test)
     if comp.empty:
         return pd.DataFrame(columns=cols)
     rows = []
@@ -331,7 +392,7 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA):
                     if r.empty:
                         continue
                 r = r.iloc[0]
-                counts[verdict(r["p_holm"], sign * r["mean_diff"], alpha=alpha)] += 1
+                counts[verdict(r[col], sign * r["mean_diff"], alpha=alpha)] += 1
                 counts["worse_wilcoxon"] += bool(
                     r["p_wilcoxon"] < alpha and sign * r["mean_diff"] > 0
                 )

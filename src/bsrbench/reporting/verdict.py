@@ -1,0 +1,225 @@
+"""The verdict across cells and across activities: Friedman, mean ranks and PM against each method.
+
+The per-cell tests (:mod:`.comparisons`) compare methods on the splits of one cell, i.e. on the frames of one motion;
+they say nothing about another motion. The question "is PM worse than method M on motions like these?" is asked with
+the motions as the unit (Demsar 2006, "Statistical comparisons of classifiers over multiple data sets"; Benavoli,
+Corani and Mangili 2016): each block is one data set, the mean error over the splits its score.
+
+Two units of analysis (:data:`UNITS`):
+
+- ``cell``: a block per (source, activity, n_train) cell. The cells of one activity share their frames, so they are
+  not independent data sets; this is the finer, more powerful level.
+- ``activity``: a block per (source, activity), the cell means averaged over n_train: the conservative unit, one
+  block per motion. With ``b`` blocks the smallest one-sided Wilcoxon p-value is ``2**-b``.
+
+Per unit and scope (each source alone and all sources together), :func:`verdict` gives the Friedman test over the
+methods with complete blocks (:func:`scipy.stats.friedmanchisquare`) and the Iman-Davenport F form of it, each
+method's mean rank (rank 1: lowest error), the Nemenyi critical difference of the mean ranks, and PM against each
+other method: the Wilcoxon signed-rank test of the blocks' differences ``PM - M`` (:func:`scipy.stats.wilcoxon`),
+two-sided and one-sided ("PM worse"), Holm-adjusted over PM's comparisons of that unit and scope
+(:func:`statsmodels.stats.multitest.multipletests`). A comparison that cannot be made (fewer than 2 blocks; fewer
+than 3 methods for Friedman) has an empty p-value and says so in ``note``: never a NaN claim.
+"""
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..errors import InputError
+
+#: Units of analysis: the block of the tests, and the columns that name a block.
+UNITS = {"cell": ["source", "activity", "n_train"], "activity": ["source", "activity"]}
+#: Scope of all sources together.
+ALL = "all"
+ALPHA = 0.05
+NO_BLOCKS = "fewer than 2 complete blocks: no test"
+NO_FRIEDMAN = "fewer than 3 methods: no Friedman test"
+#: Columns of ``results/{study}/aggregate/verdict.csv`` and ``reports/published/<study>-verdict.csv``.
+COLUMNS = [
+    "protocol",
+    "unit",
+    "scope",
+    "n_blocks",
+    "n_methods",
+    "friedman_chi2",
+    "friedman_p",
+    "iman_davenport_f",
+    "iman_davenport_p",
+    "nemenyi_cd",
+    "method",
+    "mean_rank",
+    "mean_error",
+    "versus",
+    "mean_diff",
+    "versus_worse_blocks",
+    "p_wilcoxon",
+    "p_wilcoxon_holm",
+    "p_wilcoxon_worse",
+    "p_wilcoxon_worse_holm",
+    "note",
+]
+
+
+def block_means(df, unit):
+    """Blocks x methods table of mean errors for one protocol's rows ``df``: per ``unit`` (:data:`UNITS`) block, the
+    mean over seeds of each cell, then (unit ``activity``) the mean over the cells' n_train. Only blocks where every
+    method has a value are kept (the tests need complete blocks)."""
+    if unit not in UNITS:
+        raise InputError(f"unit {unit!r} is not one of {sorted(UNITS)}")
+    cells = df.groupby(UNITS["cell"] + ["method"], sort=True)["error"].mean()
+    w = cells.unstack("method")
+    if unit == "activity":
+        w = w.groupby(level=["source", "activity"], sort=True).mean(numeric_only=False)
+        # an activity whose cells miss a method for some n_train is incomplete, not averaged over fewer cells
+        complete = cells.unstack("method").notna().groupby(level=["source", "activity"]).all()
+        w = w.where(complete)
+    return w.dropna(axis=0, how="any")
+
+
+def friedman(means, *, alpha=ALPHA):
+    """Friedman's test over the methods (columns) with the blocks (rows) of ``means``: a dict with n_blocks,
+    n_methods, friedman_chi2 and friedman_p (scipy), the Iman-Davenport statistic
+    ``F = (b - 1) chi2 / (b (k - 1) - chi2)`` on (k - 1, (k - 1)(b - 1)) degrees of freedom with its p-value, the
+    Nemenyi critical difference ``q_alpha sqrt(k (k + 1) / (6 b))`` of the mean ranks (``q_alpha`` the studentized
+    range quantile over sqrt 2), and a note when no test can be made."""
+    b, k = means.shape
+    out = {"n_blocks": int(b), "n_methods": int(k), "note": ""}
+    nan = dict.fromkeys(
+        ["friedman_chi2", "friedman_p", "iman_davenport_f", "iman_davenport_p", "nemenyi_cd"],
+        math.nan,
+    )
+    out.update(nan)
+    if b < 2:
+        out["note"] = NO_BLOCKS
+        return out
+    if k < 3:
+        out["note"] = NO_FRIEDMAN
+        return out
+    res = stats.friedmanchisquare(*[means[c].to_numpy(float) for c in means.columns])
+    chi2, p = float(res.statistic), float(res.pvalue)
+    df1, df2 = k - 1, (k - 1) * (b - 1)
+    denom = b * (k - 1) - chi2
+    if denom > 0:
+        f = (b - 1) * chi2 / denom
+        p_f = float(stats.f.sf(f, df1, df2))
+    else:  # every block ranks the methods identically: the F form is infinite
+        f, p_f = math.inf, 0.0
+    q = float(stats.studentized_range.ppf(1 - alpha, k, np.inf)) / math.sqrt(2.0)
+    out.update(
+        friedman_chi2=chi2,
+        friedman_p=p,
+        iman_davenport_f=float(f),
+        iman_davenport_p=p_f,
+        nemenyi_cd=q * math.sqrt(k * (k + 1) / (6.0 * b)),
+    )
+    return out
+
+
+def _wilcoxon(d, alternative):
+    d = np.asarray(d, dtype=float)
+    if not np.any(d != 0):
+        return 1.0
+    return float(stats.wilcoxon(d, alternative=alternative).pvalue)
+
+
+def _holm(p):
+    from statsmodels.stats.multitest import multipletests
+
+    p = np.asarray(p, dtype=float)
+    out = np.full(p.shape, math.nan)
+    ok = np.isfinite(p)
+    if ok.any():
+        out[ok] = multipletests(p[ok], method="holm")[1]
+    return out
+
+
+def against(means, pm="PM"):
+    """PM against each other method over the blocks of ``means``: a DataFrame indexed by method with mean_diff
+    (mean over blocks of PM - method; positive: PM worse), versus_worse_blocks (blocks where PM's error is higher),
+    p_wilcoxon (two-sided), p_wilcoxon_worse (one-sided, PM worse) and their Holm-adjusted values over the methods.
+    Empty if PM is not a column; p-values NaN (with a note) with fewer than 2 blocks."""
+    cols = [
+        "mean_diff",
+        "versus_worse_blocks",
+        "p_wilcoxon",
+        "p_wilcoxon_holm",
+        "p_wilcoxon_worse",
+        "p_wilcoxon_worse_holm",
+        "note",
+    ]
+    others = [m for m in means.columns if m != pm]
+    if pm not in means.columns or not others:
+        return pd.DataFrame(columns=cols)
+    rows = {}
+    for m in others:
+        d = (means[pm] - means[m]).to_numpy(float)
+        r = {"mean_diff": float(d.mean()) if d.size else math.nan}
+        r["versus_worse_blocks"] = int((d > 0).sum())
+        if d.size < 2:
+            r.update(p_wilcoxon=math.nan, p_wilcoxon_worse=math.nan, note=NO_BLOCKS)
+        else:
+            r.update(
+                p_wilcoxon=_wilcoxon(d, "two-sided"),
+                p_wilcoxon_worse=_wilcoxon(d, "greater"),
+                note="",
+            )
+        rows[m] = r
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out["p_wilcoxon_holm"] = _holm(out["p_wilcoxon"])
+    out["p_wilcoxon_worse_holm"] = _holm(out["p_wilcoxon_worse"])
+    return out[cols]
+
+
+def verdict(df, *, pm="PM", alpha=ALPHA):
+    """The verdict table (:data:`COLUMNS`) of an aggregate or published results table ``df``: per protocol, unit
+    (:data:`UNITS`) and scope (each source, then :data:`ALL` when there are several), one row per method with its
+    mean rank and, for the other methods, PM against it; the Friedman columns repeat on the rows of a unit and
+    scope."""
+    need = ["protocol", "source", "activity", "n_train", "method", "seed", "error"]
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"the results table lacks columns {missing} needed for the verdict across cells; expected the "
+            "aggregate table (results/{study}/aggregate/results.csv)"
+        )
+    rows = []
+    for protocol, dp in df.groupby("protocol", sort=True):
+        sources = sorted(dp["source"].unique())
+        scopes = sources + ([ALL] if len(sources) > 1 else [])
+        for unit in UNITS:
+            for scope in scopes:
+                d = dp if scope == ALL else dp[dp["source"] == scope]
+                means = block_means(d, unit)
+                if means.shape[1] == 0:
+                    continue
+                fr = friedman(means, alpha=alpha)
+                ranks = means.rank(axis=1, method="average").mean(axis=0)
+                vs = against(means, pm)
+                for m in sorted(means.columns, key=lambda m: (ranks[m], m)):
+                    r = {"protocol": protocol, "unit": unit, "scope": scope, **fr}
+                    r.update(method=m, mean_rank=float(ranks[m]))
+                    r["mean_error"] = float(means[m].mean()) if len(means) else math.nan
+                    if m in vs.index:
+                        r.update(vs.loc[m].to_dict())
+                        r["versus"] = pm
+                        r["note"] = "; ".join(x for x in (fr["note"], vs.loc[m, "note"]) if x)
+                    rows.append(r)
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def read_verdict(path):
+    """Read a verdict table; DataFileError naming the file if it cannot be read or lacks a column."""
+    from ..errors import DataFileError
+
+    try:
+        v = pd.read_csv(path)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(path, f"cannot read the verdict table ({exc}); expected a CSV file") from exc
+    missing = [c for c in COLUMNS if c not in v.columns]
+    if missing:
+        raise DataFileError(path, f"missing columns {missing}; expected {COLUMNS}")
+    v["note"] = v["note"].fillna("")
+    v["versus"] = v["versus"].fillna("")
+    return v
