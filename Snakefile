@@ -70,6 +70,8 @@ localrules:
     all,
     aggregate,
     comparisons,
+    verdict,
+    report_verdict,
     table,
     report_text,
     plot_error_vs_ntrain,

@@ -139,3 +139,20 @@ def test_two_methods_have_no_friedman_but_a_wilcoxon():
 def test_missing_column_is_named():
     with pytest.raises(InputError, match=r"lacks columns \['seed'\]"):
         verdict(_rows({("golf", 30): {"PM": 1.0, "A": 2.0}}).drop(columns="seed"))
+
+
+def test_section_latex_tables_and_the_one_block_line():
+    from bsrbench.reporting.verdict import section_latex
+
+    hsc = {
+        ("golf", 30): {"PM": 6.0, "A": 4.0, "B": 5.0},
+        ("golf", 60): {"PM": 5.0, "A": 3.0, "B": 3.5},
+        ("run", 30): {"PM": 7.0, "A": 5.0, "B": 6.5},
+    }
+    tex = section_latex(verdict(_rows(hsc)), labels={"A": "Alpha"})
+    assert r"\section{The verdict across cells and motions}" in tex
+    assert tex.count(r"\begin{table}") == 2 and "Alpha & 1.00" in tex
+    assert r"Friedman $\chi^2 = " in tex
+    one = section_latex(verdict(_rows({("golf", 30): hsc[("golf", 30)]})), labels={})
+    assert r"\begin{table}" not in one
+    assert "1 complete block, so no test across blocks." in one

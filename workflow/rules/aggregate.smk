@@ -40,3 +40,24 @@ rule comparisons:
     threads: 1
     script:
         "../scripts/comparisons.py"
+
+
+# The verdict across cells and motions: Friedman, mean ranks, PM against each method across the blocks.
+rule verdict:
+    input:
+        f"{RESULTS}/aggregate/results.csv",
+    output:
+        report(
+            f"{RESULTS}/aggregate/verdict.csv",
+            category="Results",
+            caption="../report/verdict.rst",
+        ),
+    log:
+        f"{LOGS}/aggregate/verdict.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/aggregate/verdict.tsv"
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    script:
+        "../scripts/verdict.py"

@@ -318,6 +318,22 @@ rule plot_subjective:
         "../scripts/plots_subjective.py"
 
 
+rule report_verdict:
+    input:
+        f"{RESULTS}/aggregate/verdict.csv",
+    output:
+        f"{REPORTS}/tables/verdict.tex",
+    log:
+        f"{LOGS}/report/verdict.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        labels=method_labels(),
+    script:
+        "../scripts/report_verdict.py"
+
+
 rule report_pdf:
     input:
         template="reports/report.tex",
@@ -329,6 +345,7 @@ rule report_pdf:
         why_pm_figures=why_pm_figures("pdf"),
         mechanisms=rules.report_mechanisms.output.section,
         today=rules.report_today.output.section,
+        verdict=rules.report_verdict.output[0],
         pit=rules.plot_pit.output.pdf,
     output:
         report(f"{REPORTS}/report.pdf", category="Report", caption="../report/report.rst"),

@@ -353,10 +353,10 @@ def verdict(p_holm, mean_diff, *, alpha=ALPHA):
 
 def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA, test=TIE_TEST):
     """Per (protocol, source) and opponent ("best", ``nn``): in how many cells PM is significantly worse, tied or
-    better (Holm-adjusted p of ``test``, :data:`TESTS`), and untested. Against the best: cells where PM is the best count as
-    "PM is best" (``pm_best``). ``worse_wilcoxon``: the cells where PM is worse by the Wilcoxon signed-rank test
-    alone (p < ``alpha``, no allowance for overlapping splits, no correction), for contrast. A DataFrame with
-    protocol, source, versus, cells, worse, tied, better, untested, pm_best, worse_wilcoxon."""
+    better (Holm-adjusted p of ``test``, :data:`TESTS`), and untested; against the best, cells where PM is the
+    best count as ``pm_best``. ``worse_corrected``, ``tied_corrected`` and ``better_corrected``: the same counts by
+    the corrected resampled t-test, the sensitivity to the assumption of a new data set of independent frames. A
+    DataFrame with protocol, source, versus, cells, worse, tied, better, untested, pm_best and those three."""
     cols = [
         "protocol",
         "source",
@@ -367,9 +367,11 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA, test=TIE_TEST):
         "better",
         "untested",
         "pm_best",
-        "worse_wilcoxon",
+        "worse_corrected",
+        "tied_corrected",
+        "better_corrected",
     ]
-    col = test_column(test)
+    col, corrected = test_column(test), test_column("corrected")
     if comp.empty:
         return pd.DataFrame(columns=cols)
     rows = []
@@ -393,9 +395,9 @@ def pm_counts(comp, *, pm="PM", nn="NN1", alpha=ALPHA, test=TIE_TEST):
                         continue
                 r = r.iloc[0]
                 counts[verdict(r[col], sign * r["mean_diff"], alpha=alpha)] += 1
-                counts["worse_wilcoxon"] += bool(
-                    r["p_wilcoxon"] < alpha and sign * r["mean_diff"] > 0
-                )
+                v = verdict(r[corrected], sign * r["mean_diff"], alpha=alpha)
+                if v != "untested":
+                    counts[f"{v}_corrected"] += 1
                 n += 1
             if n:
                 rows.append(

@@ -76,7 +76,7 @@ def comparison_sentences(comp, *, labels, pm="PM", nn="NN1"):
     out = []
     for (protocol, source), g in t.groupby(["protocol", "source"], sort=True):
         g = g.set_index("versus")
-        parts, wilcoxon = [], []
+        parts, corrected = [], []
         for what, name in (("best", "the best method of the cell"), (nn, L(nn))):
             if what not in g.index:
                 continue
@@ -88,17 +88,17 @@ def comparison_sentences(comp, *, labels, pm="PM", nn="NN1"):
                 text += f" (no test in {int(r['untested'])}: fewer than 2 common splits)"
             text += f" of the {int(r['cells'])} cells"
             parts.append(text)
-            wilcoxon.append(f"than {name} in {int(r['worse_wilcoxon'])}")
+            corrected.append(f"than {name} in {int(r['worse_corrected'])}")
         if not parts:
             continue
         out.append(
             f"{escape(protocol.replace('_', '-').capitalize())} protocol, {escape(source)} data, "
-            f"paired by split (corrected resampled $t$-test, Holm-adjusted over each cell's comparisons, "
+            f"on these frames (paired $t$-test over the splits, Holm-adjusted over each cell's comparisons, "
             f"significant at $p < 0.05$): {L(pm)} is significantly worse, tied or better "
             + "; ".join(parts)
-            + ". By the Wilcoxon signed-rank test alone (no allowance for the overlap of the splits or for the "
-            f"number of comparisons) {L(pm)} is worse "
-            + " and ".join(wilcoxon)
+            + ". By the corrected resampled $t$-test (Nadeau and Bengio 2003), which asks about a new data set "
+            f"of independent frames, {L(pm)} is worse "
+            + " and ".join(corrected)
             + " (Table~\\ref{tab:pm-counts})."
         )
     return out
@@ -123,7 +123,7 @@ def counts_latex(comp, *, labels, pm="PM", nn="NN1"):
             str(r.better),
             str(r.pm_best) if r.versus == "best" else "",
             str(r.untested),
-            str(r.worse_wilcoxon),
+            str(r.worse_corrected),
         ]
         for r in t.itertuples(index=False)
     ]
@@ -131,14 +131,15 @@ def counts_latex(comp, *, labels, pm="PM", nn="NN1"):
         rows,
         spec="@{}lllrrrrrrr@{}",
         caption=rf"In how many (activity, $N$) cells {L(pm)} is significantly worse than, tied with or better "
-        rf"than the cell's best method and {L(nn)}: paired by split, corrected resampled $t$-test (Nadeau and "
-        r"Bengio 2003), Holm-adjusted over each cell's comparisons, $p < 0.05$. PM best: cells where PM has the "
+        rf"than the cell's best method and {L(nn)} on these frames: paired $t$-test over the splits, "
+        r"Holm-adjusted over each cell's comparisons, $p < 0.05$. PM best: cells where PM has the "
         r"lowest mean; no test: fewer than 2 common splits; last column: the cells where PM is worse by the "
-        r"Wilcoxon signed-rank test alone ($p < 0.05$, no allowance for overlapping splits, no correction).",
+        r"corrected resampled $t$-test (Nadeau and Bengio 2003), the sensitivity to the assumption of a new data "
+        r"set of independent frames.",
         label="tab:pm-counts",
         head=[
             rf"Protocol & Source & {L(pm)} against & cells & worse & tied & better & PM best & no test & "
-            r"worse (W.) \\"
+            r"worse (corr.) \\"
         ],
     )
 

@@ -51,6 +51,8 @@ from ..errors import DataFileError, InputError
 from ..io import atomic_path
 from ..methods import configured
 from . import comparisons as cmp
+from . import headline
+from .verdict import verdict
 from .convergence import with_convergence_columns
 from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
 
@@ -127,7 +129,8 @@ def publish(src, dest, study=None):
 
 def publish_comparisons(src, dest):
     """Write the paired comparisons of the published table ``src`` (checked as :func:`.tables.read_results`
-    checks it) to ``dest`` with exactly :data:`.comparisons.PUBLISHED_COLUMNS`. ``dest`` must be
+    checks it) to ``dest`` with exactly :data:`.comparisons.PUBLISHED_COLUMNS`, and the verdict across cells and
+    activities (:func:`.verdict.verdict`) to ``<study>-verdict.csv`` beside it. ``dest`` must be
     ``<study>-comparisons.csv`` next to ``<study>.csv`` naming: InputError otherwise, before anything is read."""
     want = Path(src).stem + "-comparisons.csv"
     if Path(dest).name != want:
@@ -140,18 +143,22 @@ def publish_comparisons(src, dest):
         raise DataFileError(
             dest, f"cannot write the comparisons: folder {str(Path(dest).parent)!r} does not exist"
         )
-    out = cmp.published(cmp.comparisons(read_results(src)))
-    try:
-        with atomic_path(dest) as tmp:
-            out.to_csv(tmp, index=False)
-    except OSError as exc:
-        raise DataFileError(dest, f"cannot write the comparisons ({exc.strerror or exc})") from exc
+    df = read_results(src)
+    out = cmp.published(cmp.comparisons(df))
+    verdict_dest = Path(dest).with_name(Path(src).stem + "-verdict.csv")
+    verdict_table = verdict(df)
+    for path, table, what in ((dest, out, "comparisons"), (verdict_dest, verdict_table, "verdict")):
+        try:
+            with atomic_path(path) as tmp:
+                table.to_csv(tmp, index=False)
+        except OSError as exc:
+            raise DataFileError(path, f"cannot write the {what} ({exc.strerror or exc})") from exc
     return out
 
 
 TIE_LEGEND = (
-    f"Bold: the lowest mean of the row; {TIE_TEXT}: statistically indistinguishable from it (paired by split, "
-    "corrected resampled t-test of Nadeau and Bengio 2003, Holm-adjusted over the row's comparisons, p >= 0.05; "
+    f"Bold: the lowest mean of the row; {TIE_TEXT}: not distinguishable from it on these frames (paired t-test "
+    "over the splits, Holm-adjusted over the row's comparisons, p >= 0.05; the corrected resampled t-test is in "
     "reports/published/paper-comparisons.csv)."
 )
 
@@ -280,8 +287,8 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
         "Means over the (activity, N) cells of the random protocol, the paper's mean over the same cells in "
         "brackets (rank 1: the lowest mean error of a cell); "
         "best or tied: the cells where the method has "
-        "the lowest mean or is statistically indistinguishable from it (paired by split, corrected resampled "
-        "t-test, Holm-adjusted, p >= 0.05). Italic: today's baselines. Every cell, with the paper's numbers: "
+        "the lowest mean or is not distinguishable from it on these frames (paired t-test over the splits, "
+        "Holm-adjusted, p >= 0.05). Italic: today's baselines. Every cell, with the paper's numbers: "
         "[docs/results.md](docs/results.md).",
     ]
     return "\n".join(lines)
@@ -289,26 +296,28 @@ def readme_summary(df, paper=None, *, protocol="random", labels=None, comparison
 
 def readme_counts(comparisons, *, labels=None, pm="PM", nn="NN1"):
     """Markdown table: per protocol and source, in how many (activity, N) cells PM is significantly worse than,
-    tied with or better than the cell's best method and 1-NN (:func:`.comparisons.pm_counts`), and its legend."""
+    tied with or better than the cell's best method and 1-NN on these frames (paired t-test over the splits), and
+    worse, tied or better by the corrected resampled t-test (:func:`.comparisons.pm_counts`), and its legend."""
     labels = {**{m: r.label for m, r in configured(README_STUDY).items()}, **(labels or {})}
     t = cmp.pm_counts(comparisons, pm=pm, nn=nn)
     lines = [
-        f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test | worse (Wilcoxon) |",
-        "|" + "---|" * 10,
+        f"| protocol | source | {pm} against | cells | worse | tied | better | PM best | no test "
+        "| worse (corrected) | tied (corrected) | better (corrected) |",
+        "|" + "---|" * 12,
     ]
     for r in t.itertuples(index=False):
         versus = "best method" if r.versus == "best" else labels.get(r.versus, r.versus)
         best = str(r.pm_best) if r.versus == "best" else ""
         lines.append(
             f"| {r.protocol} | {r.source} | {versus} | {r.cells} | {r.worse} | {r.tied} | {r.better} | {best} "
-            f"| {r.untested} | {r.worse_wilcoxon} |"
+            f"| {r.untested} | {r.worse_corrected} | {r.tied_corrected} | {r.better_corrected} |"
         )
     lines += [
         "",
-        "Paired by split, corrected resampled t-test (Nadeau and Bengio 2003), Holm-adjusted over each cell's "
-        "comparisons, significant at p < 0.05; PM best: cells where PM has the lowest mean; no test: fewer than 2 "
-        "common splits; worse (Wilcoxon): the cells where PM is worse by the Wilcoxon signed-rank test alone "
-        "(p < 0.05, no allowance for overlapping splits, no correction).",
+        "Worse, tied, better: on these frames, by the paired t-test over the splits (Holm-adjusted over each "
+        "cell's comparisons, p < 0.05); (corrected): by the corrected resampled t-test of Nadeau and Bengio 2003, "
+        "which asks about a new data set of independent frames; PM best: cells where PM has the lowest mean; no "
+        "test: fewer than 2 common splits.",
     ]
     return "\n".join(lines)
 
@@ -478,6 +487,8 @@ def main(argv=None):
         summary = readme_summary(
             df, read_paper_tables(args.paper), protocol=args.protocol, comparisons=comp
         )
+        labels = {m: r.label for m, r in configured(README_STUDY).items()}
+        generated = headline.blocks(df, comp, verdict(df), labels=labels, protocol=args.protocol)
         if args.update:
             if not update_readme(args.update, tables, counts, summary):
                 print(
@@ -485,7 +496,10 @@ def main(argv=None):
                     "count of PM's significant differences was not written",
                     file=sys.stderr,
                 )
+            headline.update_blocks(args.update, generated)
         else:
+            for name, text in generated.items():
+                print(f"\n**{name}**\n\n{text}")
             print("\n\n".join(f"**{s}**\n\n{t}" for s, t in tables.items()))
             print("\n**PM against the best method and 1-NN**\n\n" + counts)
             print("\n**Summary**\n\n" + summary)

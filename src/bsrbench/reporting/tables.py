@@ -171,8 +171,9 @@ def tie_caption(ties, *, protocol, source):
     tested = any(k[0] == protocol and k[1] == source for k in ties)
     text = (
         TIE_MARK
-        + ": statistically indistinguishable from the best of its row (paired by split, corrected "
-        r"resampled $t$-test of Nadeau and Bengio, Holm-adjusted over the row's comparisons, $p \geq 0.05$)."
+        + ": not distinguishable from the best of its row on these frames (paired $t$-test over the splits, "
+        r"Holm-adjusted over the row's comparisons, $p \geq 0.05$; the corrected resampled $t$-test, which asks "
+        r"about a new data set of independent frames, is in the comparisons table)."
     )
     if not tested:
         text += r" No row has 2 common splits, so no row was tested and none is marked."

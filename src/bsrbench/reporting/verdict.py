@@ -204,9 +204,13 @@ def verdict(df, *, pm="PM", alpha=ALPHA):
                     if m in vs.index:
                         r.update(vs.loc[m].to_dict())
                         r["versus"] = pm
-                        r["note"] = "; ".join(x for x in (fr["note"], vs.loc[m, "note"]) if x)
+                        r["note"] = "; ".join(dict.fromkeys(x for x in (fr["note"], vs.loc[m, "note"]) if x))
                     rows.append(r)
-    return pd.DataFrame(rows, columns=COLUMNS)
+    out = pd.DataFrame(rows, columns=COLUMNS)
+    out["versus_worse_blocks"] = out["versus_worse_blocks"].astype("Int64")
+    out["versus"] = out["versus"].fillna("")
+    out["note"] = out["note"].fillna("")
+    return out
 
 
 def read_verdict(path):
@@ -214,7 +218,7 @@ def read_verdict(path):
     from ..errors import DataFileError
 
     try:
-        v = pd.read_csv(path)
+        v = pd.read_csv(path, dtype={"note": str, "versus": str})
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise DataFileError(path, f"cannot read the verdict table ({exc}); expected a CSV file") from exc
     missing = [c for c in COLUMNS if c not in v.columns]
@@ -223,3 +227,91 @@ def read_verdict(path):
     v["note"] = v["note"].fillna("")
     v["versus"] = v["versus"].fillna("")
     return v
+
+
+def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
+    """The report's section "The verdict across cells and motions" (LaTeX): per protocol and unit, a table of the
+    methods by mean rank with, per scope, the mean rank and PM's Holm-adjusted Wilcoxon p against the method
+    (two-sided and one-sided), the Friedman test in the caption; one line if nothing can be tested."""
+    from .latex import escape, fixed, table
+
+    L = lambda m: escape(labels.get(m, m))  # noqa: E731
+
+    def p(x):
+        if x is None or not np.isfinite(x):
+            return "--"
+        s = f"{x:.3f}" if x >= 0.001 else f"{x:.0e}"
+        return rf"\textbf{{{s}}}" if x < alpha else s
+
+    out = [
+        r"\section{The verdict across cells and motions}",
+        "The tests of each cell compare methods on the frames of one motion. Whether "
+        + L(pm)
+        + " is worse than another method on motions like these is asked with the motions as the unit (Demsar "
+        "2006): each block is a (source, activity, $N$) cell, or a (source, activity) motion with its cells "
+        "averaged over $N$ (the conservative unit, since the cells of a motion share its frames). Friedman's "
+        "test over the methods (with the Iman-Davenport $F$) and, for "
+        + L(pm)
+        + " against each other method, the Wilcoxon signed-rank test of the blocks' differences, "
+        "Holm-adjusted over the comparisons; bold: $p < 0.05$.",
+    ]
+    if v.empty:
+        return "\n\n".join(out + ["No complete blocks: nothing to test."])
+    for protocol, vp in v.groupby("protocol", sort=True):
+        for unit in UNITS:
+            vu = vp[vp["unit"] == unit]
+            if vu.empty:
+                continue
+            scopes = list(dict.fromkeys(vu["scope"]))
+            words = "(source, activity, $N$) cells" if unit == "cell" else "(source, activity) motions"
+            if (vu["n_blocks"] < 2).all():
+                out.append(
+                    f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks {words}: "
+                    f"{int(vu['n_blocks'].max())} complete block, so no test across blocks."
+                )
+                continue
+            first = vu[vu["scope"] == scopes[-1]]
+            methods = list(first["method"])
+            caption = f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks: {words}. "
+            for sc in scopes:
+                r = vu[vu["scope"] == sc].iloc[0]
+                if np.isfinite(r["friedman_p"]):
+                    caption += (
+                        rf"{escape(sc)}: {int(r['n_blocks'])} blocks, Friedman $\chi^2 = "
+                        rf"{r['friedman_chi2']:.1f}$, $p = {p(r['friedman_p']).replace(chr(92) + 'textbf', '')}$, "
+                        rf"Iman-Davenport $F = {r['iman_davenport_f']:.1f}$, CD {fixed(r['nemenyi_cd'])}. "
+                    )
+                else:
+                    caption += f"{escape(sc)}: {int(r['n_blocks'])} block(s), {escape(r['note'])}. "
+            head = [
+                ["method"] + [rf"\multicolumn{{3}}{{c}}{{{escape(sc)}}}" for sc in scopes],
+                [""] + ["rank", "$p$", r"$p_{\rm worse}$"] * len(scopes),
+            ]
+            rows = []
+            for m in methods:
+                cells = [L(m)]
+                for sc in scopes:
+                    r = vu[(vu["scope"] == sc) & (vu["method"] == m)]
+                    if r.empty:
+                        cells += ["--"] * 3
+                        continue
+                    r = r.iloc[0]
+                    cells += [
+                        fixed(r["mean_rank"]),
+                        p(r["p_wilcoxon_holm"]) if r["versus"] else "",
+                        p(r["p_wilcoxon_worse_holm"]) if r["versus"] else "",
+                    ]
+                rows.append(cells)
+            out.append(
+                table(
+                    rows,
+                    spec="@{}l" + "rrr" * len(scopes) + "@{}",
+                    head=head,
+                    caption=caption
+                    + rf"Rank: mean rank (1: best); $p$, $p_{{\rm worse}}$: {L(pm)} against the method, "
+                    "two-sided and one-sided (PM worse), Holm-adjusted.",
+                    label=f"tab:verdict-{protocol}-{unit}",
+                    tabcolsep="3pt",
+                )
+            )
+    return "\n\n".join(out)
