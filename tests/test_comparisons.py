@@ -178,6 +178,7 @@ def test_cell_compares_with_pm_and_the_best_with_holm_over_the_cell():
         assert r.p_paired_t == pytest.approx(stats.ttest_1samp(d, 0.0).pvalue)
         raw[frozenset((r.method, r.versus))] = p
         raw_plain[frozenset((r.method, r.versus))] = r.p_paired_t
+
     # Holm over the 3 distinct pairs {A, PM}, {B, PM}, {A, B}: sorted p times 3, 2, 1, running maximum
     def by_hand(raw):
         adj, run = {}, 0.0

@@ -87,14 +87,18 @@ def test_findings_name_the_cells_where_pm_beats_a_paper_baseline():
         "in 1: hsc golf N = 30 (than RVM)" in text
     )
     assert "It beats 1-NN in 1 cells (N = 30)" in text
-    assert "the second highest on hsc (50.0 mm; the others 40.0-60.0 mm; above it: RVM 60.0)" in text
+    assert (
+        "the second highest on hsc (50.0 mm; the others 40.0-60.0 mm; above it: RVM 60.0)" in text
+    )
 
 
 def test_notes_name_the_split_that_dominates_a_mean_nlpd():
     df = _rows({("hsc", "run", 30): {"RVM": 5.0}, ("hsc", "run", 60): {"RVM": 4.0}})
     df["nlpd"] = [2.0, 3.0, 1e6, 2.5]
     text = headline.notes_markdown(df, labels={})
-    assert text.startswith("- RVM's mean NLPD on hsc (2.5e+05) comes from one split: hsc run, N = 60, seed 0")
+    assert text.startswith(
+        "- RVM's mean NLPD on hsc (2.5e+05) comes from one split: hsc run, N = 60, seed 0"
+    )
     assert "(NLPD 1.0e+06, 100.00% of the sum over its 4 splits)" in text
     df["nlpd"] = [2.0, 3.0, 4.0, 2.5]
     assert headline.notes_markdown(df, labels={}) == "- No mean NLPD is dominated by one split."

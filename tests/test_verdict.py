@@ -102,7 +102,9 @@ def test_activity_unit_averages_over_n_and_drops_incomplete_activities():
     assert len(cells) == 3  # (run, 60) lacks A
     acts = block_means(df, "activity")
     assert list(acts.index) == [("hsc", "golf")]
-    assert acts.loc[("hsc", "golf"), "PM"] == pytest.approx(5.005)  # mean of 6, 4 (+0.005 of the seeds)
+    assert acts.loc[("hsc", "golf"), "PM"] == pytest.approx(
+        5.005
+    )  # mean of 6, 4 (+0.005 of the seeds)
     with pytest.raises(InputError, match="unit 'frame' is not one of"):
         block_means(df, "frame")
 

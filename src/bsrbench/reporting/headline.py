@@ -107,7 +107,9 @@ def _cells(df, protocol):
     return d.groupby(["source", "activity", "n_train", "method"])["error"].mean().unstack("method")
 
 
-def findings_markdown(df, comp, v, *, labels, pm="PM", nn="NN1", protocol="random", alpha=cmp.ALPHA):
+def findings_markdown(
+    df, comp, v, *, labels, pm="PM", nn="NN1", protocol="random", alpha=cmp.ALPHA
+):
     """The README's paragraph of findings, each number computed from the results ``df``, the comparisons ``comp``
     and the verdict ``v`` of ``protocol``."""
     L = lambda m: _label(labels, m)  # noqa: E731
@@ -278,4 +280,3 @@ __all__ = [
     "update_blocks",
     "verdict_markdown",
 ]
-

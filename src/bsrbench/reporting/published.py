@@ -52,9 +52,9 @@ from ..io import atomic_path
 from ..methods import configured
 from . import comparisons as cmp
 from . import headline
-from .verdict import verdict
 from .convergence import with_convergence_columns
 from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
+from .verdict import verdict
 
 #: The study whose published table the README shows (``reports/published/paper.csv``, ``config/paper.yaml``).
 _DEFAULT_PAPER = Path(__file__).resolve().parents[3] / "resources" / "paper-tables.csv"

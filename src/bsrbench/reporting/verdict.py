@@ -204,7 +204,9 @@ def verdict(df, *, pm="PM", alpha=ALPHA):
                     if m in vs.index:
                         r.update(vs.loc[m].to_dict())
                         r["versus"] = pm
-                        r["note"] = "; ".join(dict.fromkeys(x for x in (fr["note"], vs.loc[m, "note"]) if x))
+                        r["note"] = "; ".join(
+                            dict.fromkeys(x for x in (fr["note"], vs.loc[m, "note"]) if x)
+                        )
                     rows.append(r)
     out = pd.DataFrame(rows, columns=COLUMNS)
     out["versus_worse_blocks"] = out["versus_worse_blocks"].astype("Int64")
@@ -220,7 +222,9 @@ def read_verdict(path):
     try:
         v = pd.read_csv(path, dtype={"note": str, "versus": str})
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(path, f"cannot read the verdict table ({exc}); expected a CSV file") from exc
+        raise DataFileError(
+            path, f"cannot read the verdict table ({exc}); expected a CSV file"
+        ) from exc
     missing = [c for c in COLUMNS if c not in v.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}; expected {COLUMNS}")
@@ -263,7 +267,9 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
             if vu.empty:
                 continue
             scopes = list(dict.fromkeys(vu["scope"]))
-            words = "(source, activity, $N$) cells" if unit == "cell" else "(source, activity) motions"
+            words = (
+                "(source, activity, $N$) cells" if unit == "cell" else "(source, activity) motions"
+            )
             if (vu["n_blocks"] < 2).all():
                 out.append(
                     f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks {words}: "
@@ -272,7 +278,9 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
                 continue
             first = vu[vu["scope"] == scopes[-1]]
             methods = list(first["method"])
-            caption = f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks: {words}. "
+            caption = (
+                f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks: {words}. "
+            )
             for sc in scopes:
                 r = vu[vu["scope"] == sc].iloc[0]
                 if np.isfinite(r["friedman_p"]):
