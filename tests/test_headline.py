@@ -109,3 +109,12 @@ def test_notes_name_the_split_that_dominates_a_mean_nlpd():
 )
 def test_p_text(p, text):
     assert headline.p_text(p) == text
+
+
+def test_findings_with_one_cell_say_no_test_across_cells():
+    df = _rows({("hsc", "golf", 30): {"PM": 5.0, "RVM": 6.0, "TGP": 4.0}})
+    text = headline.findings_markdown(df, cmp.comparisons(df), verdict(df), labels={})
+    assert text.startswith(
+        "- With 1 complete (source, activity, N) cells, no test across the cells is possible "
+        "(fewer than 2 complete blocks: no test)."
+    )

@@ -283,7 +283,7 @@ def test_latex_table_marks_the_means_tied_with_the_best_and_says_so():
     assert cells[2].startswith("11.50 $") and r"\dagger" not in cells[2]
     assert cells[3].startswith(r"6.63$^{\dagger}$ $\pm$")
     assert cells[4].startswith(r"\textbf{6.50}") and r"\dagger" not in cells[4]
-    assert r"$^{\dagger}$: statistically indistinguishable from the best of its row" in text
+    assert r"$^{\dagger}$: not distinguishable from the best of its row on these frames" in text
     assert "Holm-adjusted" in text and r"$p \geq 0.05$" in text
     plain = latex_table(summarize(df), paper_frame(), **kw)
     assert r"\dagger" not in plain.split(r"\caption")[1].split("\n", 1)[1]

@@ -105,6 +105,17 @@ def load_features(path):
     return out
 
 
+def read_csv(path, what, **kwargs):
+    """``pandas.read_csv(path, **kwargs)``; DataFileError naming the file and ``what`` it should hold (e.g. "the
+    aggregate table") if it cannot be read as CSV."""
+    import pandas as pd
+
+    try:
+        return pd.read_csv(path, **kwargs)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(path, f"cannot read {what} ({exc}); expected a CSV file") from exc
+
+
 def write_json(path, obj):
     """Write ``obj`` as sorted, indented JSON, atomically."""
     with atomic_path(path) as tmp:

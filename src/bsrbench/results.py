@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import DataFileError, InputError
-from .io import atomic_path
+from .io import atomic_path, read_csv
 
 #: The columns that identify a job in the aggregate table.
 KEY_COLUMNS = ["protocol", "source", "activity", "method", "n_train", "seed"]
@@ -88,12 +88,7 @@ def read_results(path, design=None):
     ``design``: the configured study, ``{"protocols": [...], "pairs": [[source, activity], ...],
     "methods": [...], "n_train": [...], "seeds": [...]}`` (see :func:`check_design`).
     """
-    try:
-        df = pd.read_csv(path)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(
-            path, f"cannot read the aggregate table ({exc}); expected a CSV file"
-        ) from exc
+    df = read_csv(path, "the aggregate table")
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}")

@@ -38,6 +38,7 @@ import pandas as pd
 from scipy import stats
 
 from ..errors import InputError
+from ..io import read_csv
 
 #: Region of practical equivalence of the Bayesian correlated t-test (degrees).
 ROPE = 0.5
@@ -502,12 +503,7 @@ def read_comparisons(path):
     ``versus`` of a cell that is not PM, else PM."""
     from ..errors import DataFileError
 
-    try:
-        c = pd.read_csv(path, keep_default_na=True)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(
-            path, f"cannot read the comparisons ({exc}); expected a CSV file"
-        ) from exc
+    c = read_csv(path, "the comparisons", keep_default_na=True)
     missing = [k for k in PUBLISHED_COLUMNS if k not in c.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}; expected {PUBLISHED_COLUMNS}")

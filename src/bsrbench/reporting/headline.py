@@ -120,7 +120,13 @@ def findings_markdown(
     if g is None or g.empty:
         scope = v["scope"].iloc[0] if len(v) else None
         g, a = _against(v, "cell", scope, pm) if scope else (v.iloc[0:0], v.iloc[0:0])
-    if len(g) and len(a):
+    if len(g) and (not len(a) or not np.isfinite(a["p_wilcoxon_holm"]).any()):
+        r = g.iloc[0]
+        out.append(
+            f"With {int(r['n_blocks'])} complete {UNIT_WORDS['cell']}, no test across the cells is possible "
+            f"({r['note'] or 'no comparison with ' + pm})."
+        )
+    elif len(g):
         r = g.iloc[0]
         pm_rank = float(g.loc[g["method"] == pm, "mean_rank"].iloc[0])
         worse = a[(a["p_wilcoxon_holm"] < alpha) & (a["mean_diff"] > 0)]

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataFileError, InputError
-from ..io import atomic_path
+from ..io import atomic_path, read_csv
 from ..paper import PAPER_METHODS, PAPER_TABLES  # noqa: F401 (PAPER_METHODS: report.py's name)
 from ..results import (  # noqa: F401 (the aggregate table's functions, under the names the scripts use)
     KEY_COLUMNS,
@@ -64,12 +64,7 @@ def activity_label(activity, paper_activity=None):
 
 def read_paper_tables(path):
     """The paper's Tables I and II as rows (table, activity, n_train, method, mean_deg, std_deg), keyed by our ids."""
-    try:
-        df = pd.read_csv(path)
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(
-            path, f"cannot read the paper's tables ({exc}); expected a CSV file"
-        ) from exc
+    df = read_csv(path, "the paper's tables")
     need = {"table", "activity", "n_train", "method", "mean_deg", "std_deg"}
     if not need <= set(df.columns):
         raise DataFileError(path, f"needs columns {sorted(need)}; has {list(df.columns)}")

@@ -28,6 +28,7 @@ import pandas as pd
 from scipy import stats
 
 from ..errors import InputError
+from ..io import read_csv
 
 #: Units of analysis: the block of the tests, and the columns that name a block.
 UNITS = {"cell": ["source", "activity", "n_train"], "activity": ["source", "activity"]}
@@ -140,15 +141,7 @@ def against(means, pm="PM"):
     (mean over blocks of PM - method; positive: PM worse), versus_worse_blocks (blocks where PM's error is higher),
     p_wilcoxon (two-sided), p_wilcoxon_worse (one-sided, PM worse) and their Holm-adjusted values over the methods.
     Empty if PM is not a column; p-values NaN (with a note) with fewer than 2 blocks."""
-    cols = [
-        "mean_diff",
-        "versus_worse_blocks",
-        "p_wilcoxon",
-        "p_wilcoxon_holm",
-        "p_wilcoxon_worse",
-        "p_wilcoxon_worse_holm",
-        "note",
-    ]
+    cols = COLUMNS[COLUMNS.index("mean_diff") :]
     others = [m for m in means.columns if m != pm]
     if pm not in means.columns or not others:
         return pd.DataFrame(columns=cols)
@@ -219,12 +212,7 @@ def read_verdict(path):
     """Read a verdict table; DataFileError naming the file if it cannot be read or lacks a column."""
     from ..errors import DataFileError
 
-    try:
-        v = pd.read_csv(path, dtype={"note": str, "versus": str})
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(
-            path, f"cannot read the verdict table ({exc}); expected a CSV file"
-        ) from exc
+    v = read_csv(path, "the verdict table", dtype={"note": str, "versus": str})
     missing = [c for c in COLUMNS if c not in v.columns]
     if missing:
         raise DataFileError(path, f"missing columns {missing}; expected {COLUMNS}")
