@@ -51,6 +51,7 @@ from ..errors import DataFileError, InputError
 from ..io import atomic_path
 from ..methods import configured
 from . import comparisons as cmp
+from . import freshness
 from .convergence import with_convergence_columns
 from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
 
@@ -122,6 +123,8 @@ def publish(src, dest, study=None):
         raise DataFileError(
             dest, f"cannot write the published table ({exc.strerror or exc})"
         ) from exc
+    # the provenance beside it: per method the fingerprint and digests the staleness check compares
+    freshness.write_table_provenance(dest, df)
     return df
 
 
@@ -437,7 +440,10 @@ def main(argv=None):
         metavar="README",
         help="replace the text between <!-- mechanisms --> and <!-- /mechanisms --> instead of printing",
     )
+    freshness.add_commands(sub)
     args = ap.parse_args(argv)
+    if args.cmd in freshness.COMMANDS:
+        return freshness.run_command(args)
     try:
         if args.cmd == "mechanisms":
             from .mechanisms import readme_paragraph
