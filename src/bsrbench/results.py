@@ -9,6 +9,7 @@ it imports neither.
 """
 
 import json
+from datetime import UTC
 from pathlib import Path
 
 import numpy as np
@@ -304,9 +305,7 @@ def code_digests(estimator):
     from .methods import Method
     from .sources import ROOT
 
-    files = Method(
-        name=estimator, label="", group="", order=0, estimator=estimator
-    ).source_files()
+    files = Method(name=estimator, label="", group="", order=0, estimator=estimator).source_files()
     out = {}
     for f in map(Path, files):
         rel = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.name
@@ -347,10 +346,10 @@ def git_commit(folder=PROJECT):
 
 def row_provenance(estimator):
     """The :data:`PROVENANCE_COLUMNS` of a result row of the method with the estimator at ``estimator``."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     return {
         "code_fingerprint": code_fingerprint(code_digests(estimator)),
         "git_commit": git_commit(),
-        "written_at": datetime.now(timezone.utc).isoformat(timespec="microseconds"),
+        "written_at": datetime.now(UTC).isoformat(timespec="microseconds"),
     }

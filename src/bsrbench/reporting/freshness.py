@@ -21,7 +21,7 @@ one (its README line says so).
 
 import json
 import random
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -69,7 +69,9 @@ def read_provenance(table):
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise DataFileError(path, f"cannot read the provenance ({exc}); expected a JSON object") from None
+        raise DataFileError(
+            path, f"cannot read the provenance ({exc}); expected a JSON object"
+        ) from None
     if not isinstance(data, dict):
         raise DataFileError(path, "expected a JSON object (study, methods, optionally historical)")
     return data
@@ -179,7 +181,9 @@ def check_table(table, *, digests=None):
                 if changed
                 else "changed files unknown (no per-file digests in the provenance)"
             )
-            why.append(f"{n_old} of {len(rows)} rows of other code ({len(fps)} fingerprint(s)); {what}")
+            why.append(
+                f"{n_old} of {len(rows)} rows of other code ({len(fps)} fingerprint(s)); {what}"
+            )
         if versions:
             why.append("package versions: " + "; ".join(versions))
         lines.append(f"{name} {m}: stale: " + "; ".join(why))
@@ -383,7 +387,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print):
         if m in set(df["method"])
         and (df.loc[df["method"] == m, "code_fingerprint"] != now[m][0]).any()
     ]
-    commit, date = git_commit(), datetime.now(timezone.utc).isoformat(timespec="seconds")
+    commit, date = git_commit(), datetime.now(UTC).isoformat(timespec="seconds")
     out = {}
     for m in todo:
         rows = sample_rows(df, k, seed, methods=[m])
@@ -449,7 +453,9 @@ def write_table_provenance(table, df, files=None):
     files = files or configfiles(table)
     try:
         now = today(study_registry(study_config(files), " + ".join(files)))
-    except InputError:  # an overlay study not yet named in its provenance: no digests, the check says so
+    except (
+        InputError
+    ):  # an overlay study not yet named in its provenance: no digests, the check says so
         now = {}
     write_provenance(
         table,
@@ -505,7 +511,9 @@ def add_commands(sub):
         help="per published table and method: fresh (today's code fingerprint) or stale and the files changed",
     )
     c.add_argument(
-        "tables", nargs="*", help="published tables (default: reports/published/*.csv of result rows)"
+        "tables",
+        nargs="*",
+        help="published tables (default: reports/published/*.csv of result rows)",
     )
     v = sub.add_parser("verify", help="rerun random rows of a published table with today's code")
     v.add_argument("table")
@@ -548,7 +556,9 @@ def run_command(args):
                 raise InputError(f"--rows {args.rows}: expected at least {RESTAMP_ROWS}")
             out = restamp(args.table, args.rows, args.seed)
             if not out:
-                print(f"{args.table}: every method has today's code fingerprint; nothing to restamp")
+                print(
+                    f"{args.table}: every method has today's code fingerprint; nothing to restamp"
+                )
             return 0 if all(ok for ok, _ in out.values()) else 1
         df = merge(args.parts, args.dest)
         print(f"{args.dest}: {len(df)} rows from {len(args.parts)} part(s)", file=sys.stderr)
