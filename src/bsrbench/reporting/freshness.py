@@ -334,16 +334,16 @@ def verdict(key, res, largest=(0.0, None)):
 
 
 def sample_rows(df, k, seed, methods=None):
-    """``k`` rows drawn at random (``random.Random(seed)``) per method of ``methods``, or ``k`` from the whole
-    table when ``methods`` is None; in the table's order."""
-    rng = random.Random(seed)
+    """``k`` rows drawn at random per method of ``methods`` (``random.Random(f"{seed}:{method}")``, so that each
+    method gets cells of its own), or ``k`` from the whole table (``random.Random(seed)``) when ``methods`` is None;
+    in the table's order."""
     if methods is None:
-        idx = rng.sample(range(len(df)), min(k, len(df)))
+        idx = random.Random(seed).sample(range(len(df)), min(k, len(df)))
     else:
         idx = []
         for m in methods:
             rows = list(np.flatnonzero((df["method"] == m).to_numpy()))
-            idx += rng.sample(rows, min(k, len(rows)))
+            idx += random.Random(f"{seed}:{m}").sample(rows, min(k, len(rows)))
     return df.iloc[sorted(idx)]
 
 
@@ -414,7 +414,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print):
                 "rows_rerun": rerun,
                 "tolerance": {"atol": ATOL, "rtol": RTOL},
                 "largest_difference": worst,
-                "rows_before": sorted(set(map(str, df.loc[sel, "git_commit"].dropna()))),
+                "row_commits_before": sorted(set(map(str, df.loc[sel, "git_commit"].dropna()))),
             },
         }
         log(f"{table} {m}: restamped ({len(rerun)} rows rerun, largest difference {worst:.3g})")
