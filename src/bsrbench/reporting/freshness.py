@@ -347,20 +347,20 @@ def sample_rows(df, k, seed, methods=None):
     return df.iloc[sorted(idx)]
 
 
-def verify(table, k, seed=0, *, log=print):
+def verify(table, k, seed=0, *, log=print, features_folder="results/features"):
     """Rerun ``k`` random rows of ``table`` with today's code and print one verdict per row; True if all equal."""
     df = read_table(table)
     config = study_config(configfiles(table))
     ok = True
     for _, row in sample_rows(df, k, seed).iterrows():
         row = row.to_dict()
-        res, largest = compare_row(row, rerun_row(row, config))
+        res, largest = compare_row(row, rerun_row(row, config, features_folder))
         ok &= res.equal
         log(verdict(row, res, largest))
     return ok
 
 
-def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print):
+def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="results/features"):
     """For each method of ``table`` whose rows are not all of today's code fingerprint, rerun ``k`` random rows of
     it; if every one equals its published value within the tolerance, write today's fingerprint into the method's
     rows and its digests, commit and the rows rerun into the provenance. Methods with a differing row stay stale.
@@ -394,7 +394,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print):
         equal, worst, rerun = True, 0.0, []
         for _, row in rows.iterrows():
             row = row.to_dict()
-            res, (d, _) = compare_row(row, rerun_row(row, config))
+            res, (d, _) = compare_row(row, rerun_row(row, config, features_folder))
             log(verdict(row, res, (d, _)))
             equal &= res.equal
             worst = max(worst, d)
