@@ -208,3 +208,19 @@ def test_check_reads_every_published_table_of_the_project(capsys):
     for t in tables:
         lines, _ = freshness.check_table(t)
         assert lines and all(line.startswith(str(t)) for line in lines)
+
+
+def test_merging_a_new_part_into_a_restamped_table_keeps_its_restamp_record(study, tmp_path):
+    feats = study.parent.parent / "features"
+    df = pd.read_csv(study)
+    df["code_fingerprint"] = "old"
+    df.drop(columns=["written_at"]).to_csv(study, index=False)  # a table from before written_at
+    assert freshness.restamp(study, 3, features_folder=feats)["NN1"][0]
+    part = tmp_path / "part.csv"
+    new = pd.read_csv(study).iloc[:1].assign(activity="run", written_at="2100-01-01T00:00:00+00:00")
+    new.to_csv(part, index=False)
+    assert main(["merge", str(study), str(part), str(study)]) == 0
+    assert len(pd.read_csv(study)) == len(df) + 1
+    prov = json.loads(freshness.provenance_path(study).read_text())
+    assert len(prov["methods"]["NN1"]["restamped"]["rows_rerun"]) == 3
+    assert freshness.check_table(study)[1] is False

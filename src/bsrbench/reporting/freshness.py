@@ -457,14 +457,18 @@ def write_table_provenance(table, df, files=None):
         InputError
     ):  # an overlay study not yet named in its provenance: no digests, the check says so
         now = {}
-    write_provenance(
-        table,
-        {
-            "study": study_name(table),
-            "configfiles": files,
-            "methods": method_provenance(df, None, now),
-        },
-    )
+    methods = method_provenance(df, None, now)
+    try:
+        before = read_provenance(table).get("methods") or {}
+    except DataFileError:
+        before = {}
+    for m, entry in methods.items():
+        # a re-stamped method keeps the record of its rerun rows while its rows keep that fingerprint
+        old = before.get(m) or {}
+        if old.get("restamped") and old.get("code_fingerprint") == entry["code_fingerprint"]:
+            entry["restamped"] = old["restamped"]
+            entry["files"] = entry["files"] or old.get("files")
+    write_provenance(table, {"study": study_name(table), "configfiles": files, "methods": methods})
 
 
 def merge(parts, dest):
