@@ -72,3 +72,18 @@ def test_bad_tables_name_the_file_and_what_is_wrong(tmp_path):
     with pytest.raises(InputError, match=r"--columns \['eror'\]"):
         compare_tables(a, a, columns=["eror"])
     assert main([str(a), str(tmp_path / "missing.csv")]) == 2
+
+
+def test_number_lists_are_compared_within_the_tolerance_and_provenance_is_ignored(tmp_path):
+    a = _table(tmp_path / "a.csv", {("PM", 0, "per_angle_rms"): "[1.0, 2.0]"})
+    df = pd.read_csv(a)
+    df["per_angle_rms"] = df["per_angle_rms"].fillna("[1.0, 2.0]")
+    df["code_fingerprint"] = "abc"
+    df.to_csv(a, index=False)
+    b = tmp_path / "b.csv"
+    df.assign(per_angle_rms="[1.0, 2.00001]", code_fingerprint="def").to_csv(b, index=False)
+    assert compare_tables(a, b, atol=1e-4).equal
+    res = compare_tables(a, b, atol=1e-6)
+    assert list(res.columns) == ["per_angle_rms"]
+    n, d, _ = res.columns["per_angle_rms"]
+    assert n == 6 and d == pytest.approx(1e-5)

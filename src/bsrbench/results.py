@@ -9,6 +9,7 @@ it imports neither.
 """
 
 import json
+from datetime import UTC
 from pathlib import Path
 
 import numpy as np
@@ -279,3 +280,71 @@ def design_change_message(study):
         f"study=NAME, or the key 'study' of your configuration file); to start study {name!r} afresh, delete "
         f"{results}/ and {reports}/."
     )
+
+
+# --------------------------------------------------------------------------------------------- provenance
+#: The provenance columns a job writes into its row: the fingerprint of the code its method runs, the project's
+#: commit ("unknown" outside a git checkout; "+dirty" when tracked files differ from it) and the time it was written.
+PROVENANCE_COLUMNS = ("code_fingerprint", "git_commit", "written_at")
+#: The project's checkout (src/bsrbench/results.py -> the folder holding src/).
+PROJECT = Path(__file__).resolve().parents[2]
+
+
+def code_digests(estimator):
+    """{relative path: sha256 of its bytes} of the source files a method's jobs run: the files of
+    :meth:`bsrbench.methods.Method.source_files` for the estimator at ``estimator`` ("module:Class"), paths relative
+    to the folder holding the package (``bsrbench/runs.py``), an estimator module outside the package by its file
+    name. Read afresh on every call: a job must fingerprint the code on disk, not a cached copy."""
+    import hashlib
+
+    from .methods import Method
+    from .sources import ROOT
+
+    files = Method(name=estimator, label="", group="", order=0, estimator=estimator).source_files()
+    out = {}
+    for f in map(Path, files):
+        rel = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.name
+        out[rel] = hashlib.sha256(f.read_bytes()).hexdigest()
+    return dict(sorted(out.items()))
+
+
+def code_fingerprint(digests):
+    """The code fingerprint of a method: sha256 over its sorted (relative path, sha256 of the file's bytes) pairs
+    (:func:`code_digests`), so that an edit, addition or removal of any of its files changes it."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for path, digest in sorted(digests.items()):
+        h.update(f"{path}\0{digest}\n".encode())
+    return h.hexdigest()
+
+
+def git_commit(folder=PROJECT):
+    """``git rev-parse HEAD`` of the checkout at ``folder`` with "+dirty" appended when a tracked file differs from
+    it (``git diff --quiet HEAD``); "unknown" where git or the checkout is missing."""
+    import subprocess
+
+    def git(*args):
+        return subprocess.run(
+            ["git", "-C", str(folder), *args], capture_output=True, text=True, timeout=30
+        )
+
+    try:
+        head = git("rev-parse", "HEAD")
+        if head.returncode != 0:
+            return "unknown"
+        dirty = git("diff", "--quiet", "HEAD").returncode != 0
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head.stdout.strip() + ("+dirty" if dirty else "")
+
+
+def row_provenance(estimator):
+    """The :data:`PROVENANCE_COLUMNS` of a result row of the method with the estimator at ``estimator``."""
+    from datetime import datetime
+
+    return {
+        "code_fingerprint": code_fingerprint(code_digests(estimator)),
+        "git_commit": git_commit(),
+        "written_at": datetime.now(UTC).isoformat(timespec="microseconds"),
+    }

@@ -20,7 +20,7 @@ from .estimators import make_estimator, supports_std
 from .io import to_builtin
 from .metrics import check_pair, interval_coverage, mean_angle_error, per_angle_rms
 from .poses import HeadingTransform, get_pose_transform
-from .results import row_key
+from .results import row_key, row_provenance
 from .seeds import split_seed
 
 #: Nominal levels of the central predictive intervals whose empirical coverage every job records.
@@ -311,6 +311,8 @@ def _score(
         "predict_seconds": predict_seconds,
         "cv_seconds": cv_seconds,
         "versions": package_versions(),
+        # what made the row: its method's code fingerprint, the commit, the time (the staleness check's input)
+        **row_provenance(estimator),
     }
     arrays = {"train": split.train, "test": test, "y_true": Y_true, "y_pred": Y_pred}
     if Z_std is not None:

@@ -1,8 +1,9 @@
 """Compare two result tables (``results.csv`` or ``reports/published/*.csv``) within a tolerance.
 
 Rows are matched on the job's key (protocol, source, activity, method, n_train, seed); numeric columns are
-compared with ``|a - b| <= atol + rtol * |b|``, text columns (e.g. the CV's chosen ``params``) for equality.
-Run-time and version columns are left out: they differ between machines by design.
+compared with ``|a - b| <= atol + rtol * |b|``, columns of JSON number lists (``per_angle_rms``) element by element
+the same way, other text columns (e.g. the CV's chosen ``params``) for equality. Run-time, version and provenance
+columns (fingerprint, commit, time written) are left out: they differ between runs by design.
 
     python -m bsrbench.reporting.compare A.csv B.csv [--atol 1e-9] [--rtol 0] [--columns error,coverage]
 
@@ -20,7 +21,15 @@ import pandas as pd
 from ..errors import DataFileError, InputError
 
 KEY = ("protocol", "source", "activity", "method", "n_train", "seed")
-IGNORED = ("cv_seconds", "fit_seconds", "predict_seconds", "versions")
+IGNORED = (
+    "cv_seconds",
+    "fit_seconds",
+    "predict_seconds",
+    "versions",
+    "code_fingerprint",
+    "git_commit",
+    "written_at",
+)
 
 
 @dataclass
@@ -56,9 +65,48 @@ def _read(path):
 
 def compare_tables(a, b, *, atol=1e-9, rtol=0.0, columns=None):
     """Compare the results tables at paths ``a`` and ``b``; return a :class:`Comparison`."""
+    return compare_frames(_read(a), _read(b), atol=atol, rtol=rtol, columns=columns)
+
+
+def _number_lists(x):
+    """The JSON number lists of the text column ``x`` as a 2-D float array (NaN-padded), or None when a value is
+    not such a list."""
+    import json
+
+    out = []
+    for v in x:
+        if not isinstance(v, str) or not v.startswith("["):
+            return None
+        try:
+            a = json.loads(v)
+        except ValueError:
+            return None
+        if not all(isinstance(e, (int, float)) or e is None for e in a):
+            return None
+        out.append([np.nan if e is None else float(e) for e in a])
+    width = max((len(a) for a in out), default=0)
+    return np.array([a + [np.nan] * (width - len(a)) for a in out], dtype=float).reshape(
+        len(out), width
+    )
+
+
+def _numeric_bad(xv, yv, atol, rtol):
+    """Per row: whether ``xv`` and ``yv`` (rows of numbers) differ beyond the tolerance, and the largest
+    difference."""
+    both_nan = np.isnan(xv) & np.isnan(yv)
+    diff = np.where(both_nan, 0.0, np.abs(xv - yv))
+    tol = atol + rtol * np.nan_to_num(np.abs(yv))
+    bad = ~(diff <= tol)  # a NaN on one side only counts as a difference
+    diff = np.where(np.isnan(diff), np.inf, diff)
+    if diff.ndim == 2:
+        return bad.any(axis=1), (diff.max(axis=1) if diff.shape[1] else np.zeros(len(diff)))
+    return bad, diff
+
+
+def compare_frames(A, B, *, atol=1e-9, rtol=0.0, columns=None):
+    """Compare two results tables indexed by the job's key (:data:`KEY`); return a :class:`Comparison`."""
     if not (atol >= 0 and rtol >= 0):
         raise InputError(f"atol and rtol must be >= 0; got atol={atol!r}, rtol={rtol!r}")
-    A, B = _read(a), _read(b)
     out = Comparison(
         only_a=sorted(map(tuple, A.index.difference(B.index))),
         only_b=sorted(map(tuple, B.index.difference(A.index))),
@@ -76,14 +124,15 @@ def compare_tables(a, b, *, atol=1e-9, rtol=0.0, columns=None):
     A, B = A.loc[common], B.loc[common]
     for c in shared:
         x, y = A[c], B[c]
-        if pd.api.types.is_numeric_dtype(x) and pd.api.types.is_numeric_dtype(y):
-            xv, yv = x.to_numpy(float), y.to_numpy(float)
-            both_nan = np.isnan(xv) & np.isnan(yv)
-            diff = np.where(both_nan, 0.0, np.abs(xv - yv))
-            tol = atol + rtol * np.nan_to_num(np.abs(yv))
-            bad = ~(diff <= tol)  # a NaN on one side only counts as a difference
+        numeric = pd.api.types.is_numeric_dtype(x) and pd.api.types.is_numeric_dtype(y)
+        lists = None if numeric else (_number_lists(x), _number_lists(y))
+        if numeric or (
+            lists[0] is not None and lists[1] is not None and lists[0].shape == lists[1].shape
+        ):
+            xv, yv = (x.to_numpy(float), y.to_numpy(float)) if numeric else lists
+            bad, diff = _numeric_bad(xv, yv, atol, rtol)
             if bad.any():
-                worst = int(np.nanargmax(np.where(bad, np.nan_to_num(diff, nan=np.inf), -1.0)))
+                worst = int(np.argmax(np.where(bad, diff, -1.0)))
                 out.columns[c] = (int(bad.sum()), float(diff[worst]), tuple(common[worst]))
         else:
             bad = ~((x.astype(str) == y.astype(str)) | (x.isna() & y.isna())).to_numpy()

@@ -51,7 +51,7 @@ from ..errors import DataFileError, InputError
 from ..io import atomic_path
 from ..methods import configured
 from . import comparisons as cmp
-from . import headline
+from . import freshness, headline
 from .convergence import with_convergence_columns
 from .tables import KEY_COLUMNS, TIE_TEXT, best_mask, read_paper_tables, read_results, summarize
 from .verdict import verdict
@@ -124,6 +124,8 @@ def publish(src, dest, study=None):
         raise DataFileError(
             dest, f"cannot write the published table ({exc.strerror or exc})"
         ) from exc
+    # the provenance beside it: per method the fingerprint and digests the staleness check compares
+    freshness.write_table_provenance(dest, df)
     return df
 
 
@@ -446,7 +448,10 @@ def main(argv=None):
         metavar="README",
         help="replace the text between <!-- mechanisms --> and <!-- /mechanisms --> instead of printing",
     )
+    freshness.add_commands(sub)
     args = ap.parse_args(argv)
+    if args.cmd in freshness.COMMANDS:
+        return freshness.run_command(args)
     try:
         if args.cmd == "mechanisms":
             from .mechanisms import readme_paragraph

@@ -1,0 +1,585 @@
+"""Whether a published table is still what today's code makes: the staleness check, rerunning rows, re-stamping and
+merging a table regenerated in parts (``python -m bsrbench.reporting.published check|verify|restamp|merge``).
+
+Every result row carries the fingerprint of the code its method runs (:func:`bsrbench.results.row_provenance`). A
+published table ``reports/published/<study>.csv`` has a provenance file beside it,
+``reports/published/<study>.provenance.json``::
+
+    {"study": "paper",
+     "methods": {"PM": {"code_fingerprint": "...", "files": {"bsrbench/runs.py": "<sha256>", ...},
+                        "git_commit": "...", "date": "...", "restamped": {...}}, ...},
+     "historical": "reason"}                      # optional: a table kept knowingly as it is
+
+``configfiles`` (default ``["config/<study>.yaml"]``) are the configuration files the study was run with, read over
+``config/config.yaml`` in order as ``--configfile`` reads them (e.g. ``config/ablation.yaml`` then
+``config/paper-goal.yaml`` for an overlay study): they give the table's methods and their settings. ``files`` is
+the method's per-file digest map when its rows were made (or re-stamped), so that the check can name
+the file that changed. A table is *fresh* for a method when every row of the method has today's code fingerprint
+and the package versions of today's environment; ``historical`` turns a stale table into a reported, non-failing
+one (its README line says so).
+"""
+
+import json
+import random
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import DataFileError, InputError
+from ..io import atomic_path
+from ..methods import registry as method_registry
+from ..results import KEY_COLUMNS, code_digests, code_fingerprint, git_commit
+
+#: The tolerance of a rerun row against its published value (:mod:`.compare`, ``|a - b| <= atol + rtol |b|``):
+#: every fit but the GP's is deterministic and reruns bit for bit; the GP's hyper-parameters come from L-BFGS-B,
+#: whose stopping rule (relative objective change 2.2e-9, projected gradient 1e-5) lets another gradient code stop
+#: at a slightly other optimum. 1e-4 relative (0.001 deg on a 10 deg error) admits that and nothing of the size
+#: of a model change (the sampler change of the previous round moved a PM row by 2%).
+ATOL, RTOL = 1e-6, 1e-4
+#: The MCMC diagnostics of pooled chains (R-hat, ESS, Monte Carlo standard errors) are compared within
+#: :data:`DIAGNOSTICS_RTOL`: they are rank statistics of the chains' draws (ArviZ's rank-normalised, folded split
+#: R-hat), which jump when a last-bit difference of two draws reorders a tie (a PM row of ablation-crosstrial.csv
+#: reran with every error, score and ESS equal to 1e-14 and R-hat of the test error 1.01400 against 1.01357).
+DIAGNOSTICS = ("r_hat_", "ess_", "mcse_")
+DIAGNOSTICS_RTOL = 1e-3
+#: Package versions compared with today's (the bsrbench version is the code, which the fingerprint covers).
+VERSION_KEYS = ("python", "numpy", "scipy", "scikit-learn", "numba")
+#: Rows rerun per method by restamp (at least 3, the issue's minimum).
+RESTAMP_ROWS = 3
+
+
+def provenance_path(table):
+    """``<study>.provenance.json`` beside the table ``<study>.csv``."""
+    table = Path(table)
+    return table.with_name(table.name.removesuffix(".csv") + ".provenance.json")
+
+
+def study_name(table):
+    """The study of a published table: its file name without ``.csv`` (``paper.csv`` -> ``paper``)."""
+    return Path(table).name.removesuffix(".csv")
+
+
+def is_derived(table):
+    """Whether a published CSV is derived from another one (comparisons, verdicts), not result rows."""
+    return study_name(table).endswith(("-comparisons", "-verdict"))
+
+
+def read_provenance(table):
+    """The provenance of ``table`` (a dict; ``{}`` without a provenance file). DataFileError naming the file when
+    it is not a JSON object."""
+    path = provenance_path(table)
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise DataFileError(
+            path, f"cannot read the provenance ({exc}); expected a JSON object"
+        ) from None
+    if not isinstance(data, dict):
+        raise DataFileError(path, "expected a JSON object (study, methods, optionally historical)")
+    return data
+
+
+def write_provenance(table, data):
+    with atomic_path(provenance_path(table)) as tmp:
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def read_table(table):
+    """The published table at ``table`` (every column as read). DataFileError naming it when missing, unreadable or
+    without the key columns."""
+    try:
+        df = pd.read_csv(table)
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise DataFileError(table, f"cannot read the published table ({exc})") from None
+    missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
+    if missing:
+        raise DataFileError(table, f"missing columns {missing}; expected a table of result rows")
+    return df
+
+
+def today(registry):
+    """{method: (code fingerprint, {file: sha256})} of today's code for the methods of ``registry``."""
+    out = {}
+    for name, m in registry.items():
+        digests = code_digests(m.estimator)
+        out[name] = (code_fingerprint(digests), digests)
+    return out
+
+
+def _versions_today():
+    from ..runs import package_versions
+
+    return package_versions()
+
+
+def _version_changes(df):
+    """Sentences naming the packages whose version in the rows differs from today's environment."""
+    now = _versions_today()
+    seen = {}
+    for v in df["versions"].dropna().unique() if "versions" in df.columns else []:
+        try:
+            got = json.loads(v)
+        except ValueError:
+            continue
+        for k in VERSION_KEYS:
+            if k in got and got[k] != now.get(k):
+                seen.setdefault(k, set()).add(got[k])
+    return [f"{k} {sorted(map(str, v))} -> {now.get(k)}" for k, v in sorted(seen.items())]
+
+
+def changed_files(old, new):
+    """The files that differ between two {file: sha256} maps: edited, added (+) or removed (-)."""
+    out = [f for f in sorted(set(old) & set(new)) if old[f] != new[f]]
+    out += [f"+{f}" for f in sorted(set(new) - set(old))]
+    out += [f"-{f}" for f in sorted(set(old) - set(new))]
+    return out
+
+
+def check_table(table, *, digests=None):
+    """The staleness check of one published table: ``(lines, stale)``, one line per method ("fresh", "stale: ...")
+    or one line for the whole table (no fingerprints, historical, unreadable). ``digests``: :func:`today`'s map if
+    already computed."""
+    name = str(table)
+    try:
+        df = read_table(table)
+        prov = read_provenance(table)
+    except DataFileError as exc:
+        return [f"{name}: {exc}"], True
+    if prov.get("historical"):
+        return [f"{name}: historical: {prov['historical']}"], False
+    files = configfiles(table, prov)
+    try:
+        registry = study_registry(study_config(files), " + ".join(files))
+    except InputError as exc:
+        return [f"{name}: cannot tell its methods: {exc}"], True
+    lines, stale = [], False
+    unknown = sorted(set(df["method"]) - set(registry))
+    for m in unknown:
+        lines.append(
+            f"{name} {m}: unknown method (not run by {' + '.join(files)}); stale: cannot tell its code"
+        )
+        stale = True
+    if "code_fingerprint" not in df.columns:
+        lines.append(
+            f"{name}: stale: no code fingerprints (made before the fingerprints of issue 36); rerun or restamp it"
+        )
+        return lines, True
+    versions = _version_changes(df)
+    now = digests if digests is not None else today(registry)
+    for m in [m for m in registry if m in set(df["method"])]:
+        rows = df[df["method"] == m]
+        fps = set(rows["code_fingerprint"].dropna())
+        n_old = int((rows["code_fingerprint"] != now[m][0]).sum())
+        if not n_old and not versions:
+            lines.append(f"{name} {m}: fresh")
+            continue
+        stale = True
+        why = []
+        if n_old:
+            files = (prov.get("methods") or {}).get(m, {}).get("files")
+            changed = changed_files(files, now[m][1]) if isinstance(files, dict) else None
+            what = (
+                f"changed: {', '.join(changed)}"
+                if changed
+                else "changed files unknown (no per-file digests in the provenance)"
+            )
+            why.append(
+                f"{n_old} of {len(rows)} rows of other code ({len(fps)} fingerprint(s)); {what}"
+            )
+        if versions:
+            why.append("package versions: " + "; ".join(versions))
+        lines.append(f"{name} {m}: stale: " + "; ".join(why))
+    return lines, stale
+
+
+def published_tables(folder="reports/published"):
+    """The published tables of result rows in ``folder`` (the derived tables left out), sorted."""
+    return sorted(p for p in Path(folder).glob("*.csv") if not is_derived(p))
+
+
+# ------------------------------------------------------------------------------------------- rerunning rows
+def configfiles(table, prov=None):
+    """The configuration files of a published table's study (its provenance's ``configfiles``, else
+    ``config/<study>.yaml``), paths relative to the project."""
+    prov = read_provenance(table) if prov is None else prov
+    return list(prov.get("configfiles") or [f"config/{study_name(table)}.yaml"])
+
+
+def study_config(files):
+    """The configuration of a published study: ``config/config.yaml`` with ``files`` (paths relative to the
+    project) read over it in order (top-level keys replaced, ``methods`` entries merged key by key), as
+    ``--configfile`` reads them. DataFileError naming a file that is missing or not a YAML mapping."""
+    import yaml
+
+    from ..methods import CONFIG
+
+    out = {}
+    for path in [CONFIG / "config.yaml", *(CONFIG.parent / f for f in files)]:
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise DataFileError(path, f"cannot read the study's configuration ({exc})") from None
+        if not isinstance(data, dict):
+            raise DataFileError(path, "expected a YAML mapping of configuration keys")
+        for k, v in data.items():
+            if k == "methods":
+                methods = dict(out.get("methods") or {})
+                for name, entry in (v or {}).items():
+                    methods[name] = {**methods.get(name, {}), **(entry or {})}
+                out["methods"] = methods
+            else:
+                out[k] = v
+    return out
+
+
+def study_registry(config, path="the configuration"):
+    """The method registry (:func:`bsrbench.methods.registry`) of a :func:`study_config`; InputError naming a run
+    method without an entry."""
+    methods, run = config.get("methods") or {}, config.get("run") or []
+    missing = [m for m in run if m not in methods or "estimator" not in (methods[m] or {})]
+    if missing:
+        raise InputError(f"{path}: run names {missing} without a methods entry with an estimator")
+    return method_registry(methods, run)
+
+
+def _value(row, col, default=None):
+    v = row.get(col, default)
+    return default if v is None or (isinstance(v, float) and np.isnan(v)) else v
+
+
+def rerun_row(row, config, features_folder="results/features"):
+    """The result row today's code makes for the published ``row`` (a dict of a table's row): the same split and
+    method seed, the row's stored ``estimator``, ``params`` (the CV's choice, so no CV is rerun), pose transform and
+    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`)."""
+    from ..io import load_features
+    from ..runs import pool_chains, run_chain, run_job
+    from ..splits import JobSpec
+
+    spec = JobSpec(
+        source=row["source"],
+        activity=row["activity"],
+        method=row["method"],
+        n_train=int(row["n_train"]),
+        seed=int(row["seed"]),
+        protocol=row["protocol"],
+        pose_transform=_value(row, "pose_transform", config.get("pose_transform", "heading")),
+        min_test=int(config.get("min_test", 100)),
+        gap=int(config.get("gap", 30)),
+        paper_activity=_value(row, "paper_activity", "") or "",
+    )
+    if spec.method_seed != int(row["method_seed"]):
+        raise InputError(
+            f"{spec}: method seed {spec.method_seed} today, {int(row['method_seed'])} in the table"
+        )
+    path = Path(features_folder) / spec.source / f"{spec.activity}.npz"
+    if not path.is_file():
+        raise DataFileError(path, "no features to rerun the row on; run the study's features first")
+    features = load_features(path)
+    params = json.loads(row["params"]) if isinstance(row.get("params"), str) else {}
+    method = (config.get("methods") or {}).get(spec.method, {})
+    level = _value(row, "conformal_level")
+    conformal = (
+        None
+        if level is None
+        else {"level": float(level), "params": dict(method.get("cv_params") or {})}
+    )
+    n_chains = int(_value(row, "n_chains", 1))
+    kw = dict(estimator=row["estimator"], params=params)
+    if n_chains > 1:
+        chains = [
+            run_chain(spec, features, chain=c, conformal=conformal, **kw) for c in range(n_chains)
+        ]
+        new, _ = pool_chains(spec, features, chains, cv_mode=row.get("cv", "none"), **kw)
+    else:
+        new, _ = run_job(spec, features, cv_mode=row.get("cv", "none"), conformal=conformal, **kw)
+    return new
+
+
+def compare_row(old, new, *, atol=ATOL, rtol=RTOL):
+    """``(comparison, largest)``: the :class:`.compare.Comparison` of a published row and its rerun on the columns
+    both have, and the largest absolute difference of a numeric column (or number list) and its column,
+    ``(0.0, None)`` when they are identical."""
+    from ..results import aggregate_rows
+    from .compare import compare_frames
+
+    b = aggregate_rows([new])
+    a = pd.DataFrame([old])[[c for c in old if c in b.columns]]
+    b = b[a.columns]
+    # both through a CSV round trip, so that types and float text are those of a published table
+    a, b = (pd.read_csv(_csv(x)).set_index(KEY_COLUMNS) for x in (a, b))
+    exact = compare_frames(a, b, atol=0.0, rtol=0.0).columns
+    diffs = [(d, c) for c, (_, d, _) in exact.items() if d is not None]
+    diagnostics = [c for c in a.columns if c.startswith(DIAGNOSTICS)]
+    res = compare_frames(
+        a.drop(columns=diagnostics), b.drop(columns=diagnostics), atol=atol, rtol=rtol
+    )
+    if diagnostics:
+        diag = compare_frames(a[diagnostics], b[diagnostics], atol=atol, rtol=DIAGNOSTICS_RTOL)
+        res.columns.update(diag.columns)
+    return res, max(diffs, default=(0.0, None))
+
+
+def _csv(df):
+    import io
+
+    buf = io.StringIO()
+    df.to_csv(buf, index=False)
+    buf.seek(0)
+    return buf
+
+
+def verdict(key, res, largest=(0.0, None)):
+    """One line: the row's key and "equal" (with the largest difference) or what differs."""
+    cell = " ".join(f"{k}={key[k]}" for k in KEY_COLUMNS)
+    if res.equal:
+        d, c = largest
+        size = "identical" if c is None else f"largest |diff| {d:.3g} ({c})"
+        return f"{cell}: equal within atol {ATOL:g}, rtol {RTOL:g} (diagnostics {DIAGNOSTICS_RTOL:g}); {size}"
+    parts = [
+        f"{c} ({'text differs' if d is None else f'|diff| {d:.3g}'})"
+        for c, (_, d, _) in res.columns.items()
+    ]
+    return f"{cell}: DIFFERENT: {', '.join(parts)}"
+
+
+def sample_rows(df, k, seed, methods=None):
+    """``k`` rows drawn at random per method of ``methods`` (``random.Random(f"{seed}:{method}")``, so that each
+    method gets cells of its own), or ``k`` from the whole table (``random.Random(seed)``) when ``methods`` is None;
+    in the table's order."""
+    if methods is None:
+        idx = random.Random(seed).sample(range(len(df)), min(k, len(df)))
+    else:
+        idx = []
+        for m in methods:
+            rows = list(np.flatnonzero((df["method"] == m).to_numpy()))
+            idx += random.Random(f"{seed}:{m}").sample(rows, min(k, len(rows)))
+    return df.iloc[sorted(idx)]
+
+
+def verify(table, k, seed=0, *, log=print, features_folder="results/features"):
+    """Rerun ``k`` random rows of ``table`` with today's code and print one verdict per row; True if all equal."""
+    df = read_table(table)
+    config = study_config(configfiles(table))
+    ok = True
+    for _, row in sample_rows(df, k, seed).iterrows():
+        row = row.to_dict()
+        res, largest = compare_row(row, rerun_row(row, config, features_folder))
+        ok &= res.equal
+        log(verdict(row, res, largest))
+    return ok
+
+
+def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="results/features"):
+    """For each method of ``table`` whose rows are not all of today's code fingerprint, rerun ``k`` random rows of
+    it; if every one equals its published value within the tolerance, write today's fingerprint into the method's
+    rows and its digests, commit and the rows rerun into the provenance. Methods with a differing row stay stale.
+    Returns {method: (restamped?, largest difference over the rerun rows' numeric columns)}."""
+    df = read_table(table)
+    prov = read_provenance(table)
+    files = configfiles(table, prov)
+    config = study_config(files)
+    registry = study_registry(config, " + ".join(files))
+    unknown = sorted(set(df["method"]) - set(registry))
+    if unknown:
+        raise InputError(f"{table}: methods {unknown} are not run by {' + '.join(files)}")
+    now = today(registry)
+    prov.setdefault("study", study_name(table))
+    prov.setdefault("configfiles", files)
+    methods_prov = prov.setdefault("methods", {})
+    if "code_fingerprint" not in df.columns:
+        df["code_fingerprint"] = None
+    if "git_commit" not in df.columns:
+        df["git_commit"] = None
+    todo = [
+        m
+        for m in registry
+        if m in set(df["method"])
+        and (df.loc[df["method"] == m, "code_fingerprint"] != now[m][0]).any()
+    ]
+    commit, date = git_commit(), datetime.now(UTC).isoformat(timespec="seconds")
+    out = {}
+    for m in todo:
+        rows = sample_rows(df, k, seed, methods=[m])
+        equal, worst, rerun = True, 0.0, []
+        for _, row in rows.iterrows():
+            row = row.to_dict()
+            res, (d, _) = compare_row(row, rerun_row(row, config, features_folder))
+            log(verdict(row, res, (d, _)))
+            equal &= res.equal
+            worst = max(worst, d)
+            rerun.append({c: _plain(row[c]) for c in KEY_COLUMNS})
+        out[m] = (equal, worst)
+        if not equal:
+            log(f"{table} {m}: not restamped (a rerun row differs); stays stale")
+            continue
+        sel = df["method"] == m
+        df.loc[sel, "code_fingerprint"] = now[m][0]
+        methods_prov[m] = {
+            "code_fingerprint": now[m][0],
+            "files": now[m][1],
+            "git_commit": commit,
+            "date": date,
+            "restamped": {
+                "rows_rerun": rerun,
+                "tolerance": {"atol": ATOL, "rtol": RTOL, "diagnostics_rtol": DIAGNOSTICS_RTOL},
+                "largest_difference": worst,
+                "row_commits_before": sorted(set(map(str, df.loc[sel, "git_commit"].dropna()))),
+            },
+        }
+        log(f"{table} {m}: restamped ({len(rerun)} rows rerun, largest difference {worst:.3g})")
+    if any(ok for ok, _ in out.values()):
+        with atomic_path(table) as tmp:
+            df.to_csv(tmp, index=False)
+        write_provenance(table, prov)
+    return out
+
+
+def _plain(v):
+    return v.item() if hasattr(v, "item") else v
+
+
+# ----------------------------------------------------------------------------------------- provenance of new
+def method_provenance(df, registry, now=None):
+    """The ``methods`` entry of a table's provenance: per method its rows' fingerprint and, when that is today's,
+    today's per-file digests (else None: the check then cannot name the file), the commits and the newest time."""
+    now = now if now is not None else today(registry)
+    out = {}
+    for m, rows in df.groupby("method"):
+        fps = sorted(set(rows["code_fingerprint"].dropna())) if "code_fingerprint" in rows else []
+        entry = {
+            "code_fingerprint": fps[0] if len(fps) == 1 else fps,
+            "files": now[m][1] if m in now and fps == [now[m][0]] else None,
+            "git_commit": sorted(set(rows["git_commit"].dropna())) if "git_commit" in rows else [],
+            "date": str(rows["written_at"].dropna().max()) if "written_at" in rows else None,
+        }
+        out[m] = entry
+    return out
+
+
+def write_table_provenance(table, df, files=None):
+    """Write the provenance file of a newly published table (no ``historical`` mark); ``files``: the study's
+    configuration files (default: those of the table's provenance, else ``config/<study>.yaml``)."""
+    files = files or configfiles(table)
+    try:
+        now = today(study_registry(study_config(files), " + ".join(files)))
+    except (
+        InputError
+    ):  # an overlay study not yet named in its provenance: no digests, the check says so
+        now = {}
+    methods = method_provenance(df, None, now)
+    try:
+        before = read_provenance(table).get("methods") or {}
+    except DataFileError:
+        before = {}
+    for m, entry in methods.items():
+        # a re-stamped method keeps the record of its rerun rows while its rows keep that fingerprint
+        old = before.get(m) or {}
+        if old.get("restamped") and old.get("code_fingerprint") == entry["code_fingerprint"]:
+            entry["restamped"] = old["restamped"]
+            entry["files"] = entry["files"] or old.get("files")
+    write_provenance(table, {"study": study_name(table), "configfiles": files, "methods": methods})
+
+
+def merge(parts, dest):
+    """Merge published tables of parts of one study into ``dest``: one row per job key, the newest row
+    (``written_at``) where parts overlap; two different rows of one key and equal age is an InputError naming the
+    key. Writes ``dest`` and its provenance; returns the merged DataFrame."""
+    frames = []
+    for p in parts:
+        d = read_table(p)
+        if "written_at" not in d.columns:
+            d["written_at"] = None
+        d["_part"] = str(p)
+        frames.append(d)
+    df = pd.concat(frames, ignore_index=True)
+    df["_age"] = pd.to_datetime(df["written_at"], utc=True, errors="coerce", format="ISO8601")
+    df = df.sort_values("_age", kind="mergesort", na_position="first")
+    dup = df.duplicated(KEY_COLUMNS, keep=False)
+    for key, g in df[dup].groupby(KEY_COLUMNS, sort=False):
+        newest = g[g["_age"] == g["_age"].max()] if g["_age"].notna().any() else g
+        body = newest.drop(columns=["_part", "_age"]).astype(str).drop_duplicates()
+        if len(newest) > 1 and len(body) > 1:
+            raise InputError(
+                f"{dict(zip(KEY_COLUMNS, map(_plain, key)))}: different rows of equal age in "
+                f"{sorted(set(newest['_part']))}; expected one newest row per job (rerun one part)"
+            )
+    df = df.drop_duplicates(KEY_COLUMNS, keep="last").drop(columns=["_part", "_age"])
+    df = df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
+    if not Path(dest).parent.is_dir():
+        raise DataFileError(dest, "cannot write the merged table: its folder does not exist")
+    with atomic_path(dest) as tmp:
+        df.to_csv(tmp, index=False)
+    write_table_provenance(dest, df)
+    return df
+
+
+# ------------------------------------------------------------------------------------------ command line
+COMMANDS = ("check", "verify", "restamp", "merge")
+
+
+def add_commands(sub):
+    """The subcommands of this module on the ``published`` command line's subparsers ``sub``."""
+    c = sub.add_parser(
+        "check",
+        help="per published table and method: fresh (today's code fingerprint) or stale and the files changed",
+    )
+    c.add_argument(
+        "tables",
+        nargs="*",
+        help="published tables (default: reports/published/*.csv of result rows)",
+    )
+    v = sub.add_parser("verify", help="rerun random rows of a published table with today's code")
+    v.add_argument("table")
+    v.add_argument("--rows", type=int, default=3, help="rows to rerun (default 3)")
+    v.add_argument("--seed", type=int, default=0, help="seed of the random choice (default 0)")
+    r = sub.add_parser(
+        "restamp",
+        help="rerun rows of each method whose fingerprint changed; stamp today's if all rerun equal",
+    )
+    r.add_argument("table")
+    r.add_argument("--rows", type=int, default=RESTAMP_ROWS, help="rows per method (at least 3)")
+    r.add_argument("--seed", type=int, default=0)
+    m = sub.add_parser(
+        "merge", help="merge the published tables of a study's parts (newest row per job key)"
+    )
+    m.add_argument("parts", nargs="+", help="the parts' tables")
+    m.add_argument("dest", help="reports/published/<study>.csv")
+
+
+def run_command(args):
+    """Run a subcommand of :data:`COMMANDS`; the exit status (check: 1 if anything is stale; verify: 1 if a row
+    differs; restamp: 1 if a method stays stale; 2: bad input, one line naming the file)."""
+    import sys
+
+    try:
+        if args.cmd == "check":
+            tables = args.tables or published_tables()
+            stale = False
+            for t in tables:
+                lines, bad = check_table(t)
+                print("\n".join(lines))
+                stale |= bad
+            return 1 if stale else 0
+        if args.cmd == "verify":
+            if args.rows < 1:
+                raise InputError(f"--rows {args.rows}: expected at least 1")
+            return 0 if verify(args.table, args.rows, args.seed) else 1
+        if args.cmd == "restamp":
+            if args.rows < RESTAMP_ROWS:
+                raise InputError(f"--rows {args.rows}: expected at least {RESTAMP_ROWS}")
+            out = restamp(args.table, args.rows, args.seed)
+            if not out:
+                print(
+                    f"{args.table}: every method has today's code fingerprint; nothing to restamp"
+                )
+            return 0 if all(ok for ok, _ in out.values()) else 1
+        df = merge(args.parts, args.dest)
+        print(f"{args.dest}: {len(df)} rows from {len(args.parts)} part(s)", file=sys.stderr)
+        return 0
+    except InputError as exc:  # DataFileError is one: it names the file
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

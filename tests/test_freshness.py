@@ -1,0 +1,226 @@
+"""Fingerprints of result rows and the published tables' staleness check, verify, restamp and merge (issue 36)."""
+
+import hashlib
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from bsrbench.io import load_features
+from bsrbench.reporting import freshness
+from bsrbench.reporting.published import main
+from bsrbench.results import (
+    PROVENANCE_COLUMNS,
+    aggregate_rows,
+    code_digests,
+    code_fingerprint,
+    git_commit,
+    row_provenance,
+)
+from bsrbench.runs import run_job
+from bsrbench.sources import ROOT
+from bsrbench.splits import JobSpec
+
+NN1 = "bsrbench.models.reference:NearestNeighbourRegressor"
+RIDGE = "bsrbench.models.reference:RidgeRegressor"
+
+
+def test_the_code_fingerprint_is_the_hash_of_the_methods_files_by_relative_path():
+    digests = code_digests(NN1)
+    assert "bsrbench/models/reference.py" in digests and "bsrbench/runs.py" in digests
+    assert "bsrbench/models/bsr.py" not in digests  # PM's module is not 1-NN's code
+    for rel, digest in digests.items():
+        assert digest == hashlib.sha256((ROOT / rel).read_bytes()).hexdigest()
+    by_hand = hashlib.sha256(
+        "".join(f"{p}\0{d}\n" for p, d in sorted(digests.items())).encode()
+    ).hexdigest()
+    assert code_fingerprint(digests) == by_hand
+    edited = {**digests, "bsrbench/seeds.py": "0" * 64}
+    assert code_fingerprint(edited) != by_hand
+    assert code_fingerprint({**digests, "bsrbench/new.py": "0" * 64}) != by_hand
+
+
+def test_git_commit_names_head_and_a_dirty_work_tree(tmp_path):
+    assert git_commit(tmp_path) == "unknown"
+
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "a.txt").write_text("a")
+    git("add", "a.txt")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "a")
+    head = subprocess.run(
+        ["git", "-C", str(tmp_path), "rev-parse", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    assert git_commit(tmp_path) == head
+    (tmp_path / "a.txt").write_text("b")
+    assert git_commit(tmp_path) == head + "+dirty"
+
+
+def _row(features, method="NN1", estimator=NN1, seed=0, params=None):
+    spec = JobSpec("hsc", "golf", method, 30, seed)
+    params = {"n_neighbors": 1} if params is None else params
+    return run_job(spec, load_features(features), estimator=estimator, params=params)[0]
+
+
+@pytest.fixture
+def study(tmp_path, synthetic_features):
+    """A published table ``ci.csv`` (study ci: config/ci.yaml) of four 1-NN rows and one ridge row made by
+    today's code on synthetic features in ``features/hsc/golf.npz``, with its provenance."""
+    folder = tmp_path / "features" / "hsc"
+    folder.mkdir(parents=True)
+    path = folder / "golf.npz"
+    shutil.move(synthetic_features(tmp_path), path)
+    rows = [_row(path, seed=s) for s in range(4)] + [
+        _row(path, "Ridge", RIDGE, params={"alpha": 1.0})
+    ]
+    table = tmp_path / "published" / "ci.csv"
+    table.parent.mkdir()
+    df = aggregate_rows(rows)
+    df.to_csv(table, index=False)
+    freshness.write_table_provenance(table, df)
+    return table
+
+
+def test_a_row_carries_its_methods_fingerprint_and_the_commit(study):
+    df = pd.read_csv(study)
+    assert (
+        df.loc[df["method"] == "NN1", "code_fingerprint"] == code_fingerprint(code_digests(NN1))
+    ).all()
+    assert set(df["git_commit"]) == {git_commit()}
+    assert set(row_provenance(NN1)) == set(PROVENANCE_COLUMNS) <= set(df.columns)
+
+
+def test_check_says_fresh_then_names_the_file_that_changed(study, capsys):
+    assert main(["check", str(study)]) == 0
+    assert capsys.readouterr().out.splitlines() == [f"{study} NN1: fresh", f"{study} Ridge: fresh"]
+    # a table made by other code: the provenance's digest of seeds.py differs from today's
+    prov = json.loads(freshness.provenance_path(study).read_text())
+    prov["methods"]["NN1"]["files"]["bsrbench/seeds.py"] = "0" * 64
+    freshness.provenance_path(study).write_text(json.dumps(prov))
+    df = pd.read_csv(study)
+    df.loc[df["method"] == "NN1", "code_fingerprint"] = "old"
+    df.to_csv(study, index=False)
+    assert main(["check", str(study)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == (
+        f"{study} NN1: stale: 4 of 4 rows of other code (1 fingerprint(s)); changed: bsrbench/seeds.py"
+    )
+    assert out[1] == f"{study} Ridge: fresh"
+    # knowingly historical: reported, not a failure
+    prov["historical"] = "made before the change of X"
+    freshness.provenance_path(study).write_text(json.dumps(prov))
+    assert main(["check", str(study)]) == 0
+    assert capsys.readouterr().out.strip() == f"{study}: historical: made before the change of X"
+
+
+def test_check_names_a_table_without_fingerprints_and_unknown_methods(study, capsys):
+    df = pd.read_csv(study)
+    df.loc[0, "method"] = "Nobody"
+    df.drop(columns=["code_fingerprint"]).to_csv(study, index=False)
+    assert main(["check", str(study)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"{study} Nobody: unknown method (not run by config/ci.yaml)")
+    assert out[1].startswith(f"{study}: stale: no code fingerprints")
+    assert len(out) == 2
+
+
+@pytest.mark.parametrize("content", [None, b"\x00\xff garbage", b"a,b\n1,2\n"])
+def test_verify_of_a_missing_or_corrupt_table_is_one_line_and_exit_2(tmp_path, capsys, content):
+    table = tmp_path / "ci.csv"
+    if content is not None:
+        table.write_bytes(content)
+    assert main(["verify", str(table), "--rows", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and str(table) in err
+
+
+def test_verify_reruns_rows_equal_and_finds_a_changed_one(study, capsys):
+    feats = study.parent.parent / "features"
+    assert freshness.verify(study, 2, seed=1, features_folder=feats)
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 2 and all("equal within" in line for line in out)
+    df = pd.read_csv(study)
+    df["error"] *= 1.01  # one percent off: beyond rtol 1e-4
+    df.to_csv(study, index=False)
+    assert not freshness.verify(study, 5, features_folder=feats)
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 5 and all("DIFFERENT: error (|diff|" in line for line in out)
+
+
+def test_restamp_stamps_only_the_methods_whose_rows_rerun_equal(study, capsys):
+    feats = study.parent.parent / "features"
+    df = pd.read_csv(study)
+    df["code_fingerprint"] = "old"
+    df.loc[df["method"] == "Ridge", "error"] += 1.0  # Ridge's number changed: must stay stale
+    df.to_csv(study, index=False)
+    out = freshness.restamp(study, 3, features_folder=feats)
+    assert out["NN1"][0] and not out["Ridge"][0]
+    after = pd.read_csv(study)
+    assert (
+        after.loc[after["method"] == "NN1", "code_fingerprint"]
+        == code_fingerprint(code_digests(NN1))
+    ).all()
+    assert (after.loc[after["method"] == "Ridge", "code_fingerprint"] == "old").all()
+    prov = json.loads(freshness.provenance_path(study).read_text())
+    rerun = prov["methods"]["NN1"]["restamped"]["rows_rerun"]
+    assert len(rerun) == 3 and {r["method"] for r in rerun} == {"NN1"}
+    assert prov["methods"]["Ridge"].get("restamped") is None
+    capsys.readouterr()
+    assert main(["check", str(study)]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"{study} NN1: fresh" and lines[1].startswith(f"{study} Ridge: stale")
+
+
+def test_merge_keeps_the_newest_row_and_refuses_equal_age_conflicts(study, tmp_path, capsys):
+    df = pd.read_csv(study)
+    a, b = df.iloc[:3].copy(), df.iloc[2:].copy()
+    b.loc[b.index[0], "error"] = 99.0
+    b.loc[b.index[0], "written_at"] = "2100-01-01T00:00:00+00:00"  # newer than a's row of that job
+    pa, pb, dest = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "published" / "ci.csv"
+    a.to_csv(pa, index=False)
+    b.to_csv(pb, index=False)
+    assert main(["merge", str(pa), str(pb), str(dest)]) == 0
+    merged = pd.read_csv(dest)
+    assert len(merged) == len(df) and merged["error"].tolist().count(99.0) == 1
+    # the same job twice, equal age, different numbers: refused, naming the job and the parts
+    b.loc[b.index[0], "written_at"] = a.loc[a.index[2], "written_at"]
+    b.to_csv(pb, index=False)
+    assert main(["merge", str(pa), str(pb), str(dest)]) == 2
+    err = capsys.readouterr().err
+    assert "different rows of equal age" in err and "a.csv" in err and "b.csv" in err
+    # identical rows in two parts are one row
+    a.to_csv(pb, index=False)
+    assert main(["merge", str(pa), str(pb), str(dest)]) == 0
+    assert len(pd.read_csv(dest)) == 3
+
+
+def test_check_reads_every_published_table_of_the_project(capsys):
+    """The committed tables: each reported by name, one line per table or method, no traceback."""
+    tables = freshness.published_tables(
+        Path(__file__).resolve().parents[1] / "reports" / "published"
+    )
+    assert tables and not any(freshness.is_derived(t) for t in tables)
+    for t in tables:
+        lines, _ = freshness.check_table(t)
+        assert lines and all(line.startswith(str(t)) for line in lines)
+
+
+def test_merging_a_new_part_into_a_restamped_table_keeps_its_restamp_record(study, tmp_path):
+    feats = study.parent.parent / "features"
+    df = pd.read_csv(study)
+    df["code_fingerprint"] = "old"
+    df.drop(columns=["written_at"]).to_csv(study, index=False)  # a table from before written_at
+    assert freshness.restamp(study, 3, features_folder=feats)["NN1"][0]
+    part = tmp_path / "part.csv"
+    new = pd.read_csv(study).iloc[:1].assign(activity="run", written_at="2100-01-01T00:00:00+00:00")
+    new.to_csv(part, index=False)
+    assert main(["merge", str(study), str(part), str(study)]) == 0
+    assert len(pd.read_csv(study)) == len(df) + 1
+    prov = json.loads(freshness.provenance_path(study).read_text())
+    assert len(prov["methods"]["NN1"]["restamped"]["rows_rerun"]) == 3
+    assert freshness.check_table(study)[1] is False
