@@ -36,6 +36,60 @@ rule table:
         "../scripts/tables.py"
 
 
+def other_activities(source):
+    """{activity: its name in a table} of the studied activities of ``source`` that are no row of the paper's
+    Tables I-II (``paper_activity: null``, or a second data set of a paper activity): their own error table."""
+    rows = {v for v in data_status(source).values() if isinstance(v, str)}
+    return {
+        a: a.replace("_", " ").capitalize()
+        for a in config["study_activities"][source]
+        if a not in rows
+    }
+
+
+def report_tables():
+    """The error tables of the report, per source in order: Tables I-II (those with a row) and the table of the
+    activities that are no row of them."""
+    out = []
+    for s in report_sources():
+        out += [t for t in table_targets() if Path(t).stem.split("_", 1)[1] == s]
+        if other_activities(s):
+            out.append(f"{REPORTS}/tables/activities_{s}.tex")
+    return out
+
+
+rule table_activities:
+    input:
+        results=f"{RESULTS}/aggregate/results.csv",
+        comparisons=f"{RESULTS}/aggregate/comparisons.csv",
+    output:
+        report(
+            f"{REPORTS}/tables/activities_{{source}}.tex",
+            category="Tables",
+            subcategory="{source}",
+            caption="../report/activities.rst",
+        ),
+    log:
+        f"{LOGS}/report/activities_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        design=study_design(),
+        methods=table_methods(),
+        labels=method_labels(),
+        groups=method_groups(),
+        n_train=config["n_train"],
+        protocols=config["protocols"],
+        activities=lambda w: other_activities(w.source),
+        skipped=lambda w: skipped_notes(w.source),
+        frames=lambda w: {
+            a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]
+        },
+    script:
+        "../scripts/table_activities.py"
+
+
 rule report_text:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
@@ -54,7 +108,7 @@ rule report_text:
         labels=method_labels(),
         figure_methods=table_methods(),
         study=config["study"],
-        tables=table_targets(),
+        tables=report_tables(),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         status={s: data_status(s) for s in report_sources()},
@@ -322,7 +376,7 @@ rule report_pdf:
     input:
         template="reports/report.tex",
         text=rules.report_text.output,
-        tables=table_targets(),
+        tables=report_tables(),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         why_pm=rules.report_why_pm.output.section,

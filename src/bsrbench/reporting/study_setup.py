@@ -58,7 +58,7 @@ def parameters_table(df, *, labels, defaults):
         items = [
             escape(f"{k}={v}").replace("-", "-{}").replace("|", r"|\allowbreak{}") for k, v in pairs
         ]
-        return ", ".join(items) if items else r"\textrm{none}"
+        return ", ".join(items) if items else "none"
 
     rows = []
     for m, (seen, default) in used.items():
@@ -73,12 +73,13 @@ def parameters_table(df, *, labels, defaults):
     return table(
         rows,
         width=r"\linewidth",
-        spec=r"@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
-        r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}",
+        # roman type in the parameter columns: long lists of defaults read at the table's size
+        spec=r"@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash}X"
+        r">{\hsize=1.25\hsize\raggedright\arraybackslash}X@{}",
         label="tab:parameters",
-        head=[
-            r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\"
-        ],
+        head=[r"Method & Class & Set by the configuration or CV & Estimator defaults \\"],
+        # too tall to follow the setup on page 1: LaTeX sets it where it fits and the text fills the page
+        placement="tbp",
         caption=r"Parameters each method ran with: those set by the configuration or chosen by cross-validation "
         r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
         r"others.",
