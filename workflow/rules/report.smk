@@ -3,6 +3,11 @@
 # so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
 
 
+# The HTML report's landing page (snakemake --report): titled with the study's name. Snakemake 9.27 fixes the
+# browser tab's title ("Snakemake Report") in its template; no option changes it.
+report: "../report/workflow.rst"
+
+
 rule table:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
@@ -38,7 +43,8 @@ rule table:
 
 def other_activities(source):
     """{activity: its name in a table} of the studied activities of ``source`` that are no row of the paper's
-    Tables I-II (``paper_activity: null``, or a second data set of a paper activity): their own error table."""
+    Tables I-II (``paper_activity: null``, or a second data set of a paper activity): their own error table.
+    """
     rows = {v for v in data_status(source).values() if isinstance(v, str)}
     return {
         a: a.replace("_", " ").capitalize()
