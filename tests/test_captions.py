@@ -87,6 +87,11 @@ def test_subjective_caption_follows_the_stick_figures_drawn():
     # the frame drawn: the first seed and the median-error frame of the first subjective method, by its label
     for text in (authors, rendered, none):
         assert "seed 7; the test frame with the median error of 1-NN" in text
+    # none of report.subjective_methods run: one sentence says so (the figure has one line)
+    assert captions.caption("subjective", "hsc", _study(subjective_first="")) == (
+        "Subjective comparison on the hsc data: none of the methods of the configuration key "
+        r"report.subjective\_methods was run, so no frame is drawn."
+    )
 
 
 def test_figure_captions_in_order_with_paths_from_the_report_folder(tmp_path):

@@ -84,6 +84,11 @@ def caption(kind, source, study):
             + not_drawn(study, source)
         )
     kinds = dict(study.stick_kinds).get(source, [])
+    if kind == "subjective" and not study.subjective_first:
+        return (
+            f"Subjective comparison on the {source} data: none of the methods of the configuration key "
+            r"report.subjective\_methods was run, so no frame is drawn."
+        )
     if kind == "subjective" and kinds == ["authors"]:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "

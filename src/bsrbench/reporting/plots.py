@@ -248,12 +248,13 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     width = min(TEXT_WIDTH, 1.6 + (4.0 if cols == 1 else 2.6 * cols))
     fig = plt.figure(figsize=(width, (2.5 * rows + 0.25) * len(blocks)), layout="constrained")
     per_activity = []
-    for sub, (title, ms) in zip(fig.subfigures(len(blocks), 1), blocks):
+    for k, (sub, (title, ms)) in enumerate(zip(fig.subfigures(len(blocks), 1), blocks)):
         axes = sub.subplots(rows, cols, squeeze=False)
         for ax in axes.flat[len(acts) :]:
             ax.remove()
         axes = list(axes.flat)[: len(acts)]
-        _error_block(sub, axes, s, acts, ms, methods, paper, labels, sizes)
+        # the paper's lines in the paper's block only (PM beside the others is this study's PM)
+        _error_block(sub, axes, s, acts, ms, methods, paper if k == 0 else paper[:0], labels, sizes)
         sub.suptitle(title[0].upper() + title[1:], fontsize=8, fontweight="bold")
         per_activity.append(axes)
     for same in zip(*per_activity):  # one activity's panels: one y range, so the blocks compare
@@ -434,7 +435,13 @@ def plot_subjective(panels, *, labels):
     ``preds`` ({method: predicted angles}), ``frame`` (frame index), ``errors`` ({method: error on this frame}).
     Row titles and method labels are those of :func:`plot_subjective_sticks`.
     """
-    n = max(1, len(panels))
+    if not panels:
+        # none of the methods drawn was run: one line instead of empty axes (the caption says so too)
+        fig, ax = plt.subplots(figsize=(3.0, 0.6))
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "no method of report.subjective_methods was run", ha="center", va="center")
+        return fig
+    n = len(panels)
     fig, axes = plt.subplots(
         n,
         2,
