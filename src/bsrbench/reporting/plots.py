@@ -439,7 +439,9 @@ def plot_subjective(panels, *, labels):
         # none of the methods drawn was run: one line instead of empty axes (the caption says so too)
         fig, ax = plt.subplots(figsize=(3.0, 0.6))
         ax.set_axis_off()
-        ax.text(0.5, 0.5, "no method of report.subjective_methods was run", ha="center", va="center")
+        ax.text(
+            0.5, 0.5, "no method of report.subjective_methods was run", ha="center", va="center"
+        )
         return fig
     n = len(panels)
     fig, axes = plt.subplots(

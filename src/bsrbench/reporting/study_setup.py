@@ -2,6 +2,7 @@
 the parameters each method ran with, computed from the aggregate table."""
 
 import json
+import math
 
 from .latex import escape, general, nobreak, table
 from .tables import activity_label
@@ -45,6 +46,12 @@ def parameters_used(df, *, defaults, labels=None):
     return out
 
 
+def _lines(rows):
+    """About how many printed lines the parameter table's rows take (the widest cell of a row: about 45
+    characters a line in the third column, 70 in the fourth)."""
+    return sum(max(1, math.ceil(len(r[2]) / 45), math.ceil(len(r[3]) / 70)) for r in rows)
+
+
 def parameters_table(df, *, labels, defaults):
     """LaTeX table: per method, the estimator, the parameters set by the configuration or CV, and the estimator
     defaults it ran with (see :func:`parameters_used`)."""
@@ -78,8 +85,9 @@ def parameters_table(df, *, labels, defaults):
         r">{\hsize=1.25\hsize\raggedright\arraybackslash}X@{}",
         label="tab:parameters",
         head=[r"Method & Class & Set by the configuration or CV & Estimator defaults \\"],
-        # too tall to follow the setup on page 1: LaTeX sets it where it fits and the text fills the page
-        placement="tbp",
+        # a tall table (the quick study's: about 35 lines) floats, so that the findings fill page 1 instead of a
+        # blank half page before it; a short one stays here, in the order of the tables
+        placement="tbp" if _lines(rows) > 15 else "H",
         caption=r"Parameters each method ran with: those set by the configuration or chosen by cross-validation "
         r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
         r"others.",
