@@ -1,8 +1,7 @@
 """Every report rule works for a study of any subset of methods and activities: the real workflow runs tiny studies
 (config/ci.yaml-sized: one activity, N = 30, two seeds, no CV, cheap methods) to the PDF report, which must have
 pages, and a section with nothing to show says so in one line. Between them the studies have no method with a
-predictive distribution, no PM, one method, one activity (of the paper's, or of one's own) and one N; about
-2 minutes on an idle 2-core machine (a one-method study without PM, also run, passed as well).
+predictive distribution, no PM, one method, one activity (of the paper's, or of one's own) and one N.
 
 Before: a study without a method with a predictive distribution (``run: [NN1, Ridge]``) failed in rule plot_pit
 ("Number of rows must be a positive integer, not 0"), and an activity without a row in the paper's tables
