@@ -339,3 +339,24 @@ def test_latex_table_marks_the_means_tied_with_the_best_and_says_so():
     one = df[df["seed"] == 0]
     t1 = latex_table(summarize(one), paper_frame(), ties=tied_with_best(comparisons(one)), **kw)
     assert "no row was tested and none is marked" in t1
+
+
+def test_error_tables_add_the_table_of_activities_without_a_paper_row():
+    from bsrbench.reporting.tables import error_tables, other_activities
+
+    status = {"Walk": "walk", "Run": {"kind": "here", "activity": "run"}}
+    # walk_trial has paper_activity null; run_cmu is a second data set of Run, whose row is run's
+    assert other_activities(status, ["walk", "walk_trial"]) == {"walk_trial": "Walk trial"}
+    assert other_activities({"Run": "run"}, ["run", "run_cmu"]) == {"run_cmu": "Run cmu"}
+    assert error_tables(
+        "reports/s",
+        {"hsc": ({"Golf": "golf"}, ["golf"]), "mocap": (status, ["walk", "walk_trial"])},
+    ) == [
+        "reports/s/tables/tableI_hsc.tex",
+        "reports/s/tables/tableII_mocap.tex",
+        "reports/s/tables/activities_mocap.tex",
+    ]
+    # an activity of one's own only: no Table I-II, its own table
+    assert error_tables("r", {"mocap": ({"Walk": {"kind": "here"}}, ["walk_trial"])}) == [
+        "r/tables/activities_mocap.tex"
+    ]

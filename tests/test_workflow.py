@@ -488,6 +488,7 @@ LOCAL_RULES = {
     "comparisons",
     "plot_cd",
     "table",
+    "table_activities",
     "report_text",
     "plot_error_vs_ntrain",
     "plot_calibration",

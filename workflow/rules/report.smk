@@ -3,6 +3,9 @@
 # so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
 
 
+from bsrbench.reporting.tables import error_tables, other_activities
+
+
 # The HTML report's landing page (snakemake --report): titled with the study's name. Snakemake 9.27 fixes the
 # browser tab's title ("Snakemake Report") in its template; no option changes it.
 report: "../report/workflow.rst"
@@ -41,27 +44,9 @@ rule table:
         "../scripts/tables.py"
 
 
-def other_activities(source):
-    """{activity: its name in a table} of the studied activities of ``source`` that are no row of the paper's
-    Tables I-II (``paper_activity: null``, or a second data set of a paper activity): their own error table.
-    """
-    rows = {v for v in data_status(source).values() if isinstance(v, str)}
-    return {
-        a: a.replace("_", " ").capitalize()
-        for a in config["study_activities"][source]
-        if a not in rows
-    }
-
-
-def report_tables():
-    """The error tables of the report, per source in order: Tables I-II (those with a row) and the table of the
-    activities that are no row of them."""
-    out = []
-    for s in report_sources():
-        out += [t for t in table_targets() if Path(t).stem.split("_", 1)[1] == s]
-        if other_activities(s):
-            out.append(f"{REPORTS}/tables/activities_{s}.tex")
-    return out
+# quick, like the other report rules: on the submit host under SLURM (the Snakefile's localrules)
+localrules:
+    table_activities,
 
 
 rule table_activities:
@@ -87,7 +72,9 @@ rule table_activities:
         groups=method_groups(),
         n_train=config["n_train"],
         protocols=config["protocols"],
-        activities=lambda w: other_activities(w.source),
+        activities=lambda w: other_activities(
+            data_status(w.source), config["study_activities"][w.source]
+        ),
         skipped=lambda w: skipped_notes(w.source),
         frames=lambda w: {
             a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]
@@ -114,7 +101,10 @@ rule report_text:
         labels=method_labels(),
         figure_methods=table_methods(),
         study=config["study"],
-        tables=report_tables(),
+        tables=error_tables(
+            REPORTS,
+            {s: (data_status(s), config["study_activities"][s]) for s in report_sources()},
+        ),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         status={s: data_status(s) for s in report_sources()},
@@ -382,7 +372,10 @@ rule report_pdf:
     input:
         template="reports/report.tex",
         text=rules.report_text.output,
-        tables=report_tables(),
+        tables=error_tables(
+            REPORTS,
+            {s: (data_status(s), config["study_activities"][s]) for s in report_sources()},
+        ),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         why_pm=rules.report_why_pm.output.section,

@@ -50,6 +50,27 @@ def tables_with_rows(status):
     ]
 
 
+def other_activities(status, studied):
+    """{activity: its name in a table} of the ``studied`` activities (ids, in order) of a data source that are no
+    row of the paper's Tables I-II (``paper_activity: null``, or a second data set of a paper activity): they get
+    a table of their own (:func:`activities_table`). ``status``: the workflow's data_status of the source."""
+    rows = {v for v in status.values() if isinstance(v, str)}
+    return {a: activity_label(a) for a in studied if a not in rows}
+
+
+def error_tables(folder, sources):
+    """The error tables of the report, per data source in order: Tables I-II with a row
+    (:func:`tables_with_rows`), ``<folder>/tables/table<T>_<source>.tex``, and the table of
+    :func:`other_activities`, ``<folder>/tables/activities_<source>.tex``. ``sources``: {source: (status,
+    studied activities)}."""
+    out = []
+    for s, (status, studied) in sources.items():
+        out += [f"{folder}/tables/table{t}_{s}.tex" for t in tables_with_rows(status)]
+        if other_activities(status, studied):
+            out.append(f"{folder}/tables/activities_{s}.tex")
+    return out
+
+
 def paper_key(name):
     """Case-insensitive key of a paper activity name (the paper writes "kick soccer ball" and "Run")."""
     return " ".join(str(name).lower().split()) if isinstance(name, str) and name.strip() else ""
