@@ -87,6 +87,11 @@ def test_subjective_caption_follows_the_stick_figures_drawn():
     # the frame drawn: the first seed and the median-error frame of the first subjective method, by its label
     for text in (authors, rendered, none):
         assert "seed 7; the test frame with the median error of 1-NN" in text
+    # none of report.subjective_methods run: one sentence says so (the figure has one line)
+    assert captions.caption("subjective", "hsc", _study(subjective_first="")) == (
+        "Subjective comparison on the hsc data: none of the methods of the configuration key "
+        r"report.subjective\_methods was run, so no frame is drawn."
+    )
 
 
 def test_figure_captions_in_order_with_paths_from_the_report_folder(tmp_path):
@@ -122,3 +127,13 @@ def test_why_pm_captions_describe_the_trace_and_the_gxy_panels(tmp_path):
     assert out[1][0] == "figures/gxy.pdf" and "PMK16: $K = 16 < N = 30$" in out[1][1]
     with pytest.raises(ValueError, match="expected trace or gxy"):
         captions.why_pm_captions(df, [root / "figures/pit.pdf"], **kw)
+
+
+def test_error_caption_names_the_two_rows_of_panels_when_there_are_two():
+    one = captions.caption("error_vs_ntrain", "hsc", _study())  # PM alone: one row
+    assert "Top:" not in one
+    two = captions.caption("error_vs_ntrain", "hsc", _study(figure_methods=["PM", "RVM", "NN1"]))
+    assert (
+        "Top: the paper's methods, with the paper's numbers; below: the references and today's baselines "
+        "beside PM, on the same error axis." in two
+    )

@@ -154,7 +154,7 @@ def test_findings_without_a_method_named_pm_point_to_the_variants():
     text = findings(aggregate_rows(rows), None, labels={"PMK8": "PM K=8", "NN1": "1-NN"})
     assert text == [
         "No method named PM was run, so the paper's claims about it are not checked here; the PM "
-        "variants run (PM K=8) are compared in the section ``Why PM trails the paper here''."
+        r"variants run (PM K=8) are compared in Section~\ref{sec:why-pm}."
     ]
     text = findings(aggregate_rows(result_rows({("golf", "NN1"): [7.0, 7.5]})), None, labels=LABELS)
     assert text == [

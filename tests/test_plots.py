@@ -288,3 +288,63 @@ def test_frame_errors_wrap_the_angle_differences():
     pred = np.array([[10.0, 10.0], [90.0, 170.0]])
     # 350 -> 10 is 20 degrees, not 340; -170 -> 170 is 20 degrees
     np.testing.assert_allclose(frame_errors(truth, pred), [(20 + 0) / 2, (90 + 20) / 2])
+
+
+def test_figures_with_nothing_to_draw_say_so_in_one_line():
+    """Before: a study without a method with a predictive distribution failed in rule plot_pit (matplotlib's
+    "Number of rows must be a positive integer, not 0"); one without a subjective method drew empty axes."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import plot_subjective
+    from bsrbench.reporting.today import plot_pit
+
+    for fig, words in (
+        (plot_pit({}, labels={}), "no method with a predictive"),
+        (plot_subjective([], labels={}), "no method of report.subjective_methods was run"),
+    ):
+        texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+        assert len(texts) == 1 and words in texts[0], texts
+        plt.close(fig)
+
+
+def test_error_figure_draws_the_paper_methods_and_the_others_in_panels_of_their_own():
+    """Before: 12 methods and the paper's dotted lines in one panel per activity. Now the paper's methods (with
+    the paper's lines) and the references and today's baselines (beside PM, in the same colour) have a row of
+    panels each, with the same y range per activity."""
+    import matplotlib.pyplot as plt
+
+    from bsrbench.reporting.plots import figure_blocks, plot_error_vs_ntrain
+
+    labels = {**LABELS, "KNN": "k-NN"}
+    assert figure_blocks(["PM", "RVM", "NN1", "KNN"], labels) == [
+        ("the paper's methods", ["PM", "RVM"]),
+        ("references and today's baselines", ["PM", "NN1", "KNN"]),
+    ]
+    assert figure_blocks(["PM", "RVM"], labels) == [(None, ["PM", "RVM"])]
+    df = aggregate_rows(
+        result_rows(
+            {
+                ("golf", "PM"): [8.0, 9.0],
+                ("golf", "RVM"): [12.0, 13.0],
+                ("golf", "NN1"): [7.0, 7.5],
+                ("golf", "KNN"): [3.0, 3.5],
+            }
+        )
+    )
+    fig = plot_error_vs_ntrain(
+        df, paper_frame(), source="hsc", methods=["PM", "RVM", "NN1", "KNN"], labels=labels
+    )
+    assert len(fig.subfigs) == 2 and len(fig.axes) == 2
+    legends = [[t.get_text() for t in sub.legends[0].get_texts()] for sub in fig.subfigs]
+    assert legends[0][:2] == ["PM", "RVM"] and "the paper" in legends[0]
+    assert legends[1][:3] == ["PM", "1-NN", "k-NN"] and "the paper" not in legends[1]
+    top, bottom = fig.axes
+    assert top.get_ylim() == bottom.get_ylim()
+    pm_colour = {
+        tuple(ln.get_color()) if not isinstance(ln.get_color(), str) else ln.get_color()
+        for ax in fig.axes
+        for ln in ax.get_lines()
+        if ln.get_marker() == "o"
+    }
+    assert len(pm_colour) == 1  # PM (first method, marker "o") in one colour in both blocks
+    plt.close(fig)

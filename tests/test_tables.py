@@ -92,19 +92,66 @@ def test_latex_table_layout_bold_paper_rows_and_missing_data():
     assert (
         paper.startswith(r"\emph{\quad paper}") and r"\textbf{8.24}" in paper and "14.51" in paper
     )
-    acro = [ln for ln in lines if ln.startswith("Acrobatics")]
+    # rows of results only (before: a filler row per activity without data, "data not on this machine"); one line
+    # under the table names those activities and why
+    assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == ["Golf"]
+    under = [ln for ln in text.splitlines() if "Not shown" in ln]
+    assert len(under) == 1
     assert (
-        len(acro) == 1
-        and "multicolumn{4}" in acro[0]
-        and "data not on this machine; see the note" in acro[0]
+        "Acrobatics (data not on this machine); Navigate (no data set of this source)" in under[0]
     )
-    assert any(ln.startswith("Navigate &") and "no data set of this source" in ln for ln in lines)
-    # every one of the paper's Table I activities has a row
-    assert [ln.split(" & ")[0] for ln in lines[1:] if not ln.startswith(r"\emph")] == [
-        "Acrobatics",
-        "Navigate",
-        "Golf",
-    ]
+    assert "see the note below the tables" in under[0]
+    # every activity with a row: no line
+    full = {"Golf": "golf", "Acrobatics": "golf", "Navigate": "golf"}
+    assert "Not shown" not in latex_table(
+        summarize(df),
+        paper_frame(),
+        source="hsc",
+        table="I",
+        methods=["PM"],
+        labels=LABELS,
+        n_train=[30],
+        protocols=["random"],
+        status=full,
+    )
+
+
+def test_activities_table_has_the_rows_of_activities_without_a_paper_row_and_no_paper_numbers():
+    """An activity added by configuration with paper_activity null (before: no error table at all)."""
+    from bsrbench.reporting.comparisons import comparisons, tied_with_best
+    from bsrbench.reporting.tables import activities_tables
+
+    df = paired_rows(
+        {
+            ("golf", "PM"): [8.0, 9.0, 10.0],
+            ("golf", "NN1"): [8.5, 8.9, 10.4],
+            ("golf", "KNN"): [20.0, 21.0, 22.0],
+        }
+    ).assign(activity="walk_one", paper_activity="")
+    text = activities_tables(
+        summarize(df),
+        source="hsc",
+        activities={"walk_one": "Walk one"},
+        methods=["PM", "NN1", "KNN"],
+        groups={"KNN": "today"},
+        labels=LABELS,
+        n_train=[30],
+        protocols=["random"],
+        ties=tied_with_best(comparisons(df)),
+        frames={"walk_one": "first 167 frames"},
+    )
+    blocks = text.split(r"\end{table}")[:2]
+    assert "(today's baselines)" in blocks[1]
+    walk = [ln for ln in text.splitlines() if ln.startswith("Walk one & 30")]
+    # a row per block: PM and 1-NN, then PM beside k-NN; the best (PM) bold in both, 1-NN tied with it
+    assert [ln.count(r"$\pm$") for ln in walk] == [2, 2]
+    assert walk[0].split(" & ")[2].startswith(r"\textbf{9.00}")
+    assert walk[0].split(" & ")[3].startswith(r"9.27$^{\dagger}$")
+    assert "paper" not in text.replace(
+        "paper's tables", ""
+    )  # no paper rows, no italic-row sentence
+    assert r"Frames. walk\_one: first 167 frames." in text
+    assert r"\label{tab:activities-hsc-random}" in text
 
 
 def test_latex_table_notes_skipped_sizes_and_states_the_frames():
@@ -292,3 +339,24 @@ def test_latex_table_marks_the_means_tied_with_the_best_and_says_so():
     one = df[df["seed"] == 0]
     t1 = latex_table(summarize(one), paper_frame(), ties=tied_with_best(comparisons(one)), **kw)
     assert "no row was tested and none is marked" in t1
+
+
+def test_error_tables_add_the_table_of_activities_without_a_paper_row():
+    from bsrbench.reporting.tables import error_tables, other_activities
+
+    status = {"Walk": "walk", "Run": {"kind": "here", "activity": "run"}}
+    # walk_trial has paper_activity null; run_cmu is a second data set of Run, whose row is run's
+    assert other_activities(status, ["walk", "walk_trial"]) == {"walk_trial": "Walk trial"}
+    assert other_activities({"Run": "run"}, ["run", "run_cmu"]) == {"run_cmu": "Run cmu"}
+    assert error_tables(
+        "reports/s",
+        {"hsc": ({"Golf": "golf"}, ["golf"]), "mocap": (status, ["walk", "walk_trial"])},
+    ) == [
+        "reports/s/tables/tableI_hsc.tex",
+        "reports/s/tables/tableII_mocap.tex",
+        "reports/s/tables/activities_mocap.tex",
+    ]
+    # an activity of one's own only: no Table I-II, its own table
+    assert error_tables("r", {"mocap": ({"Walk": {"kind": "here"}}, ["walk_trial"])}) == [
+        "r/tables/activities_mocap.tex"
+    ]

@@ -3,6 +3,14 @@
 # so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
 
 
+from bsrbench.reporting.tables import error_tables, other_activities
+
+
+# The HTML report's landing page (snakemake --report): titled with the study's name. Snakemake 9.27 fixes the
+# browser tab's title ("Snakemake Report") in its template; no option changes it.
+report: "../report/workflow.rst"
+
+
 rule table:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
@@ -36,6 +44,45 @@ rule table:
         "../scripts/tables.py"
 
 
+# quick, like the other report rules: on the submit host under SLURM (the Snakefile's localrules)
+localrules:
+    table_activities,
+
+
+rule table_activities:
+    input:
+        results=f"{RESULTS}/aggregate/results.csv",
+        comparisons=f"{RESULTS}/aggregate/comparisons.csv",
+    output:
+        report(
+            f"{REPORTS}/tables/activities_{{source}}.tex",
+            category="Tables",
+            subcategory="{source}",
+            caption="../report/activities.rst",
+        ),
+    log:
+        f"{LOGS}/report/activities_{{source}}.log",
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    params:
+        design=study_design(),
+        methods=table_methods(),
+        labels=method_labels(),
+        groups=method_groups(),
+        n_train=config["n_train"],
+        protocols=config["protocols"],
+        activities=lambda w: other_activities(
+            data_status(w.source), config["study_activities"][w.source]
+        ),
+        skipped=lambda w: skipped_notes(w.source),
+        frames=lambda w: {
+            a: frame_protocol_text(w.source, a) for a in config["study_activities"][w.source]
+        },
+    script:
+        "../scripts/table_activities.py"
+
+
 rule report_text:
     input:
         results=f"{RESULTS}/aggregate/results.csv",
@@ -54,7 +101,10 @@ rule report_text:
         labels=method_labels(),
         figure_methods=table_methods(),
         study=config["study"],
-        tables=table_targets(),
+        tables=error_tables(
+            REPORTS,
+            {s: (data_status(s), config["study_activities"][s]) for s in report_sources()},
+        ),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         status={s: data_status(s) for s in report_sources()},
@@ -338,7 +388,10 @@ rule report_pdf:
     input:
         template="reports/report.tex",
         text=rules.report_text.output,
-        tables=table_targets(),
+        tables=error_tables(
+            REPORTS,
+            {s: (data_status(s), config["study_activities"][s]) for s in report_sources()},
+        ),
         figures=figure_targets("pdf"),
         cd_figures=[f"{REPORTS}/figures/cd_{s}.pdf" for s in report_sources()],
         why_pm=rules.report_why_pm.output.section,

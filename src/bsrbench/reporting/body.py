@@ -65,8 +65,11 @@ def missing_data_note(source, status):
         else:
             missing = sorted({f for _, st in items for f in st.get("missing", [])})
             lines.append(f"{names}: input files missing ({escape(', '.join(missing))}).")
+    # one unbreakable box: the heading never stands alone at the foot of a page
     return (
-        r"\paragraph{Activities of the paper without data ("
+        r"\par\medskip\noindent\begin{minipage}{\linewidth}"
+        + "\n"
+        + r"\paragraph{Activities of the paper without data ("
         + escape(source)
         + r").}"
         + "\n"
@@ -75,6 +78,8 @@ def missing_data_note(source, status):
         + "\\\\\n".join(lines)
         + "\n"
         + r"\end{flushleft}"
+        + "\n"
+        + r"\end{minipage}"
     )
 
 

@@ -6,7 +6,12 @@ from pathlib import Path
 
 from .convergence import gxy_caption
 from .latex import escape
-from .plots import PROTOCOL_LINE_NAMES, PROTOCOL_LINESTYLES, paper_points_not_drawn
+from .plots import (
+    PROTOCOL_LINE_NAMES,
+    PROTOCOL_LINESTYLES,
+    figure_blocks,
+    paper_points_not_drawn,
+)
 
 #: The figure kinds of the section, as their file names begin (``<kind>_<source>.pdf``).
 KINDS = ("error_vs_ntrain", "subjective", "calibration")
@@ -71,6 +76,18 @@ def not_drawn(study, source):
     )
 
 
+def blocks_text(study):
+    """The sentence on Fig. 1's two rows of panels (:func:`bsrbench.reporting.plots.figure_blocks`), or ""."""
+    blocks = figure_blocks(list(study.figure_methods), study.labels)
+    if len(blocks) == 1:
+        return ""
+    beside = " beside PM" if blocks[1][1][:1] == ["PM"] else ""
+    return (
+        " Top: the paper's methods, with the paper's numbers; below: the references and today's baselines"
+        f"{beside}, on the same error axis."
+    )
+
+
 def caption(kind, source, study):
     """The caption of one figure of ``kind`` (:data:`KINDS` or ``"cd"``) on ``source``."""
     first = escape(study.labels.get(study.subjective_first, study.subjective_first))
@@ -81,9 +98,15 @@ def caption(kind, source, study):
             "(log-log axes, ticks at the sizes studied): mean $\\pm$ std over seeds, methods dodged sideways so "
             f"that their error bars do not overlap. Filled markers: this study ({study_lines(study.df['protocol'])}); "
             "open markers, dotted lines: the paper's Tables I and II at the same $N$."
+            + blocks_text(study)
             + not_drawn(study, source)
         )
     kinds = dict(study.stick_kinds).get(source, [])
+    if kind == "subjective" and not study.subjective_first:
+        return (
+            f"Subjective comparison on the {source} data: none of the methods of the configuration key "
+            r"report.subjective\_methods was run, so no frame is drawn."
+        )
     if kind == "subjective" and kinds == ["authors"]:
         return (
             f"Subjective comparison in the layout of the paper's Fig.~2 on the {source} data: for each activity "

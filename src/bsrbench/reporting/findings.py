@@ -168,8 +168,8 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge"), compari
         return [
             f"No method named {escape(pm)} was run, so the paper's claims about it are not checked here"
             + (
-                f"; the PM variants run ({', '.join(L(m) for m in variants)}) are compared in the section "
-                "``Why PM trails the paper here''."
+                f"; the PM variants run ({', '.join(L(m) for m in variants)}) are compared in "
+                r"Section~\ref{sec:why-pm}."
                 if variants
                 else "."
             )

@@ -120,8 +120,10 @@ def table(
     tabcolsep=None,
     width=None,
     midrule=True,
+    placement="H",
 ):
-    """A booktabs table in a ``table`` float placed here (``[H]``), centred, as one string of lines.
+    """A booktabs table in a ``table`` float placed here (``placement`` ``H``; ``tbp``: where LaTeX finds room,
+    for a table too tall to follow its text on the page), centred, as one string of lines.
 
     ``head`` and ``body``: items each a row's cells (a sequence, joined by :func:`row`) or a line of LaTeX as it
     stands (a string: ``\\midrule``, ``\\cmidrule``, a prepared row). ``spec``: the column specification;
@@ -132,7 +134,7 @@ def table(
     setup = r"\centering" + size
     if tabcolsep is not None:
         setup += rf"\setlength{{\tabcolsep}}{{{tabcolsep}}}"
-    lines = [r"\begin{table}[H]", setup, rf"\caption{{{caption}}}"]
+    lines = [rf"\begin{{table}}[{placement}]", setup, rf"\caption{{{caption}}}"]
     if label is not None:
         lines.append(rf"\label{{{label}}}")
     lines.append(rf"\begin{{{env}}}" + (f"{{{width}}}" if width else "") + f"{{{spec}}}")

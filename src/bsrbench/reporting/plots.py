@@ -25,6 +25,7 @@ import numpy as np
 
 from ..io import atomic_path
 from ..metrics import wrap_degrees
+from ..paper import PAPER_METHODS
 from .tables import activity_label, paper_key, summarize
 
 #: Figures are drawn at the size they are printed (the report includes them unscaled; at most TEXT_WIDTH
@@ -209,29 +210,75 @@ PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "cross_trial": "-."}
 PROTOCOL_LINE_NAMES = {"-": "solid", "--": "dashed", "-.": "dash-dotted"}
 
 
+def figure_blocks(methods, labels, reference="PM"):
+    """Fig. 1's blocks of methods, each drawn in panels of its own so that a dozen methods stay legible:
+    ``[(title, methods), ...]``: the paper's methods (those whose label is one of the paper's, with the paper's
+    dotted lines), then the others (references and today's baselines) beside ``reference`` (the paper's PM, when
+    drawn), which keeps its colour. One block ``(None, methods)`` when either is empty."""
+    paper = [m for m in methods if labels.get(m, m) in PAPER_METHODS]
+    rest = [m for m in methods if m not in paper]
+    if not paper or not rest:
+        return [(None, list(methods))]
+    return [
+        ("the paper's methods", paper),
+        ("references and today's baselines", ([reference] if reference in paper else []) + rest),
+    ]
+
+
 def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     """Error (mean +- std over seeds) against n_train, one panel per activity of ``source``.
 
     Log-log axes, ticks at the studied sizes only, methods told apart by colour and marker (and slightly
     dodged sideways), the paper's values as open markers on dotted lines at the sizes the study ran for that
     activity (none at a size skipped for it: :func:`paper_points_not_drawn` names those, for the caption), the
-    contiguous protocol (if run) dashed, the cross-trial one dash-dotted (:data:`PROTOCOL_LINESTYLES`). The
-    legend is outside the panels and names only the protocols run.
+    contiguous protocol (if run) dashed, the cross-trial one dash-dotted (:data:`PROTOCOL_LINESTYLES`). With both
+    the paper's methods and others, each block of :func:`figure_blocks` has a row of panels (and a legend) of its
+    own, the same y range per activity in both. The legend is outside the panels and names only the protocols run.
     """
-    from matplotlib.lines import Line2D
-
     s = summarize(df[df["source"] == source])
     acts = list(dict.fromkeys(df.loc[df["source"] == source, "activity"]))
     sizes = sorted(int(n) for n in (n_train if n_train is not None else df["n_train"].unique()))
-    fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
+    blocks = figure_blocks(methods, labels)
+    if len(blocks) == 1:
+        fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
+        _error_block(fig, axes, s, acts, methods, methods, paper, labels, sizes)
+        return fig
+    cols = min(3, max(1, len(acts)))
+    rows = math.ceil(max(1, len(acts)) / cols)
+    width = min(TEXT_WIDTH, 1.6 + (4.0 if cols == 1 else 2.6 * cols))
+    fig = plt.figure(figsize=(width, (2.5 * rows + 0.25) * len(blocks)), layout="constrained")
+    per_activity = []
+    for k, (sub, (title, ms)) in enumerate(zip(fig.subfigures(len(blocks), 1), blocks)):
+        axes = sub.subplots(rows, cols, squeeze=False)
+        for ax in axes.flat[len(acts) :]:
+            ax.remove()
+        axes = list(axes.flat)[: len(acts)]
+        # the paper's lines in the paper's block only (PM beside the others is this study's PM)
+        _error_block(sub, axes, s, acts, ms, methods, paper if k == 0 else paper[:0], labels, sizes)
+        sub.suptitle(title[0].upper() + title[1:], fontsize=8, fontweight="bold")
+        per_activity.append(axes)
+    for same in zip(*per_activity):  # one activity's panels: one y range, so the blocks compare
+        lo = min(ax.get_ylim()[0] for ax in same)
+        hi = max(ax.get_ylim()[1] for ax in same)
+        for ax in same:
+            ax.set_ylim(lo, hi)
+    return fig
+
+
+def _error_block(fig, axes, s, acts, methods, colour_order, paper, labels, sizes):
+    """Draw ``methods`` in ``axes`` (one per activity) of :func:`plot_error_vs_ntrain` and the legend of ``fig`` (a
+    figure or subfigure); a method's colour and marker are those of its place in ``colour_order``."""
+    from matplotlib.lines import Line2D
+
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     protocols = [p for p in PROTOCOL_LINESTYLES if p in set(s["protocol"])]
+    place = {m: colour_order.index(m) for m in methods}
     shown_paper = False
     for ax, act in zip(axes, acts):
         pa = s.loc[s["activity"] == act, "paper_activity"].iloc[0]
         ran = _ran_sizes(s, act)  # the paper's points only where this study has one to compare with
         for i, m in enumerate(methods):
-            c, mk = colors[i % len(colors)], _MARKERS[i % len(_MARKERS)]
+            c, mk = colors[place[m] % len(colors)], _MARKERS[place[m] % len(_MARKERS)]
             dodge = 1.0 + 0.018 * (i - (len(methods) - 1) / 2)
             for protocol, ls in PROTOCOL_LINESTYLES.items():
                 d = s[
@@ -277,13 +324,13 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
         Line2D(
             [],
             [],
-            color=colors[i % len(colors)],
-            marker=_MARKERS[i % len(_MARKERS)],
+            color=colors[place[m] % len(colors)],
+            marker=_MARKERS[place[m] % len(_MARKERS)],
             ms=3.5,
             lw=1,
             label=labels.get(m, m),
         )
-        for i, m in enumerate(methods)
+        for m in methods
     ]
     # only the protocols in the data (a contiguous-only study has no "random" line to explain)
     style = [
@@ -315,7 +362,6 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
             )
         )
     fig.legend(handles=handles + style, loc="outside right upper", frameon=False)
-    return fig
 
 
 def plot_calibration(df, *, methods, labels, source=None):
@@ -389,7 +435,15 @@ def plot_subjective(panels, *, labels):
     ``preds`` ({method: predicted angles}), ``frame`` (frame index), ``errors`` ({method: error on this frame}).
     Row titles and method labels are those of :func:`plot_subjective_sticks`.
     """
-    n = max(1, len(panels))
+    if not panels:
+        # none of the methods drawn was run: one line instead of empty axes (the caption says so too)
+        fig, ax = plt.subplots(figsize=(3.0, 0.6))
+        ax.set_axis_off()
+        ax.text(
+            0.5, 0.5, "no method of report.subjective_methods was run", ha="center", va="center"
+        )
+        return fig
+    n = len(panels)
     fig, axes = plt.subplots(
         n,
         2,
@@ -538,8 +592,9 @@ def plot_subjective_sticks(panels, *, labels, elev=12.0, azim=35.0):
             x = np.asarray(pnl["x"], dtype=float)
             ax.bar(np.arange(x.size), x, width=1.0, color="0.3")
             ax.set_xlabel("histogram bin")
-            ax.set_yticks([])
-            for side in ("top", "right", "left"):
+            ax.set_ylabel("weight")
+            ax.yaxis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
+            for side in ("top", "right"):
                 ax.spines[side].set_visible(False)
             ax.set_title(f"{pnl['label']}, test frame {pnl['frame']}:\nthe input histogram")
         else:

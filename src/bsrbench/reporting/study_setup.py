@@ -2,6 +2,7 @@
 the parameters each method ran with, computed from the aggregate table."""
 
 import json
+import math
 
 from .latex import escape, general, nobreak, table
 from .tables import activity_label
@@ -45,6 +46,12 @@ def parameters_used(df, *, defaults, labels=None):
     return out
 
 
+def _lines(rows):
+    """About how many printed lines the parameter table's rows take (the widest cell of a row: about 45
+    characters a line in the third column, 70 in the fourth)."""
+    return sum(max(1, math.ceil(len(r[2]) / 45), math.ceil(len(r[3]) / 70)) for r in rows)
+
+
 def parameters_table(df, *, labels, defaults):
     """LaTeX table: per method, the estimator, the parameters set by the configuration or CV, and the estimator
     defaults it ran with (see :func:`parameters_used`)."""
@@ -58,7 +65,7 @@ def parameters_table(df, *, labels, defaults):
         items = [
             escape(f"{k}={v}").replace("-", "-{}").replace("|", r"|\allowbreak{}") for k, v in pairs
         ]
-        return ", ".join(items) if items else r"\textrm{none}"
+        return ", ".join(items) if items else "none"
 
     rows = []
     for m, (seen, default) in used.items():
@@ -73,12 +80,14 @@ def parameters_table(df, *, labels, defaults):
     return table(
         rows,
         width=r"\linewidth",
-        spec=r"@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash\ttfamily}X"
-        r">{\hsize=1.25\hsize\raggedright\arraybackslash\ttfamily}X@{}",
+        # roman type in the parameter columns: long lists of defaults read at the table's size
+        spec=r"@{}ll>{\hsize=0.75\hsize\raggedright\arraybackslash}X"
+        r">{\hsize=1.25\hsize\raggedright\arraybackslash}X@{}",
         label="tab:parameters",
-        head=[
-            r"Method & Class & \textrm{Set by the configuration or CV} & \textrm{Estimator defaults} \\"
-        ],
+        head=[r"Method & Class & Set by the configuration or CV & Estimator defaults \\"],
+        # a tall table (the quick study's: about 35 lines) floats, so that the findings fill page 1 instead of a
+        # blank half page before it; a short one stays here, in the order of the tables
+        placement="tbp" if _lines(rows) > 15 else "H",
         caption=r"Parameters each method ran with: those set by the configuration or chosen by cross-validation "
         r"(several values separated by $|$: chosen per activity and $N$), and the estimator's defaults for the "
         r"others.",

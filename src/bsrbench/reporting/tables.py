@@ -50,6 +50,27 @@ def tables_with_rows(status):
     ]
 
 
+def other_activities(status, studied):
+    """{activity: its name in a table} of the ``studied`` activities (ids, in order) of a data source that are no
+    row of the paper's Tables I-II (``paper_activity: null``, or a second data set of a paper activity): they get
+    a table of their own (:func:`activities_table`). ``status``: the workflow's data_status of the source."""
+    rows = {v for v in status.values() if isinstance(v, str)}
+    return {a: activity_label(a) for a in studied if a not in rows}
+
+
+def error_tables(folder, sources):
+    """The error tables of the report, per data source in order: Tables I-II with a row
+    (:func:`tables_with_rows`), ``<folder>/tables/table<T>_<source>.tex``, and the table of
+    :func:`other_activities`, ``<folder>/tables/activities_<source>.tex``. ``sources``: {source: (status,
+    studied activities)}."""
+    out = []
+    for s, (status, studied) in sources.items():
+        out += [f"{folder}/tables/table{t}_{s}.tex" for t in tables_with_rows(status)]
+        if other_activities(status, studied):
+            out.append(f"{folder}/tables/activities_{s}.tex")
+    return out
+
+
 def paper_key(name):
     """Case-insensitive key of a paper activity name (the paper writes "kick soccer ball" and "Run")."""
     return " ".join(str(name).lower().split()) if isinstance(name, str) and name.strip() else ""
@@ -179,6 +200,26 @@ def _row(cells):
     return " & ".join(cells) + r" \\"
 
 
+def no_row_line(table, status):
+    """The one line under a table (LaTeX) naming the paper's activities of ``table`` that have no row on its data
+    source and why (:data:`NO_ROW`), or "" if every one has a row. The tables show rows of results only."""
+    why = {}
+    for paper_name in PAPER_TABLES[table]:
+        st = status.get(paper_name, {"kind": "none"})
+        if isinstance(st, dict):
+            why.setdefault(NO_ROW.get(st.get("kind"), "no data"), []).append(paper_name)
+    if not why:
+        return ""
+    parts = [
+        f"{', '.join(latex_escape(n) for n in names)} ({reason})" for reason, names in why.items()
+    ]
+    return (
+        r"\par\smallskip{\scriptsize Not shown (no results here): "
+        + "; ".join(parts)
+        + "; see the note below the tables.}"
+    )
+
+
 def latex_table(
     summary,
     paper,
@@ -206,9 +247,9 @@ def latex_table(
     methods : method keys in column order; labels : {method: column label}.
     n_train : training sizes of the study (rows per activity).
     status : {paper activity name: studied activity id, or {"kind": why there is no row, ...}} (see
-        :data:`NO_ROW`); such rows say why and point to the note under the tables
-        (:func:`bsrbench.reporting.report.missing_data_note`); a paper activity missing from ``status`` gets
-        "no data".
+        :data:`NO_ROW`); the activities without a row are named in one line under the table
+        (:func:`no_row_line`), which points to the note under the tables
+        (:func:`bsrbench.reporting.body.missing_data_note`); a paper activity missing from ``status`` has no data.
     protocols : protocols of the study; the paper's numbers are shown (in an italic row under ours) for
         the random protocol, the paper's.
     skipped : {protocol: {activity id: [note, ...]}}: training sizes not run because too few test frames
@@ -223,20 +264,87 @@ def latex_table(
     block : None for the paper's methods, or the caption's name of another block (e.g. "today's baselines"),
         whose table gets no rows of the paper's numbers and a label ending in ``-today``.
     """
+    if table not in PAPER_TABLES:
+        raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
+    rows = [
+        (paper_name, status[paper_name], paper_name)
+        for paper_name in PAPER_TABLES[table]
+        if isinstance(status.get(paper_name), str)
+    ]
+    return error_table(
+        summary,
+        paper,
+        rows=rows,
+        title=f"Table {table}",
+        label=f"tab:{table}-{source}",
+        source=source,
+        methods=methods,
+        labels=labels,
+        n_train=n_train,
+        protocols=protocols,
+        digits=digits,
+        skipped=skipped,
+        frames=frames,
+        ties=ties,
+        best_of=best_of,
+        block=block,
+        under=no_row_line(table, status),
+    )
+
+
+def activities_table(summary, *, source, activities, **kwargs):
+    """The mean angle error table (layout, bold and tie marks of :func:`latex_table`) of studied activities with no
+    row in the paper's Tables I-II (``paper_activity: null``, or a second data set of a paper activity) on
+    ``source``: ``activities`` is {activity id: its name in the table}; no rows of the paper's numbers.
+    Other arguments as :func:`latex_table` (``best_of``, ``block``, ``ties``, ...; no ``status`` or ``table``)."""
+    rows = [(name, a, None) for a, name in activities.items()]
+    return error_table(
+        summary,
+        None,
+        rows=rows,
+        title="Activities not in the paper's tables",
+        label=f"tab:activities-{source}",
+        source=source,
+        **kwargs,
+    )
+
+
+def error_table(
+    summary,
+    paper,
+    *,
+    rows,
+    title,
+    label,
+    source,
+    methods,
+    labels,
+    n_train,
+    protocols,
+    digits=2,
+    skipped=None,
+    frames=None,
+    ties=None,
+    best_of=None,
+    block=None,
+    under="",
+):
+    """LaTeX (booktabs) of the mean angle error per (activity, N) on one data source, one tabular per protocol.
+
+    ``rows``: [(row name, studied activity id, the paper's activity name or None)]: a row per training size of
+    each activity, under it (random protocol, paper's block) the paper's numbers if it has a paper name.
+    ``title``: the caption's first words ("Table I"); ``label``: the LaTeX label's stem (protocol and block are
+    appended); ``under``: a line of LaTeX set under the tabular. Other arguments as :func:`latex_table`.
+    """
     skipped = skipped or {}
     best_of = list(best_of or methods)
     frames = frames or {}
-    if table not in PAPER_TABLES:
-        raise InputError(f"table must be one of {sorted(PAPER_TABLES)}; got {table!r}")
     ncol = 2 + len(methods)
     # fixed-width method columns that fill the 17.8 cm text width (activity 3.1 cm, N 0.8 cm, 3.5 pt gaps)
     box = min(1.8, (17.8 - 3.1 - 0.8 - 0.25 * (len(methods) + 1)) / max(1, len(methods)))
     sizes = sorted(int(n) for n in n_train)
     s = summary[summary["source"] == source]
-    p = paper[paper["table"] == table]
-    out = [
-        f"% Table {table} of the paper on data source {source!r}; generated from the study's aggregate table"
-    ]
+    out = [f"% {title} on data source {source!r}; generated from the study's aggregate table"]
     for protocol in protocols:
         sp = s[s["protocol"] == protocol]
         which = f" ({latex_escape(block)})" if block else ""
@@ -244,18 +352,19 @@ def latex_table(
             "best of each row (of both tables)" if best_of != list(methods) else "best of each row"
         )
         caption = (
-            f"Table {table}{which} on the {latex_escape(source)} data, protocol "
+            f"{title}{which} on the {latex_escape(source)} data, protocol "
             f"``{latex_escape(protocol)}'': "
             rf"mean error $\pm$ std (degrees) over seeds; {best} in bold. "
             + tie_caption(ties, protocol=protocol, source=source)
         )
-        if protocol == "random" and not block:
+        with_paper = protocol == "random" and not block and paper is not None
+        if with_paper and any(pn for _, _, pn in rows):
             caption += " Italic rows: the paper's numbers."
         out += [
             r"\begin{table}[H]",
             r"\centering\footnotesize\setlength{\tabcolsep}{3.5pt}",
             rf"\caption{{{caption}}}",
-            rf"\label{{tab:{table}-{source}-{protocol}{'-today' if block else ''}}}",
+            rf"\label{{{label}-{protocol}{'-today' if block else ''}}}",
             # activity names wrap at spaces only (never hyphenated): the paper's names, as printed there
             r"\begin{tabular}{@{}>{\raggedright\arraybackslash\hyphenpenalty=10000\exhyphenpenalty=10000}p{3.1cm}r"
             + "c" * len(methods)
@@ -267,18 +376,11 @@ def latex_table(
                 + [rf"\makebox[{box:.2f}cm]{{{latex_escape(labels.get(m, m))}}}" for m in methods]
             ),
         ]
-        for paper_name in PAPER_TABLES[table]:
+        for row_name, activity, paper_name in rows:
             out.append(r"\midrule")
-            name = latex_escape(paper_name)
-            activity = status.get(paper_name, {"kind": "none"})
-            if isinstance(activity, dict) or activity not in set(sp["activity"]):
-                why = (
-                    NO_ROW.get(activity.get("kind"), "no data")
-                    if isinstance(activity, dict)
-                    else activity
-                )
-                why = latex_escape(why) + "; see the note below the tables"
-                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{{why}}}}}"
+            name = latex_escape(row_name)
+            if activity not in set(sp["activity"]):
+                note = rf"\multicolumn{{{ncol - 1}}}{{@{{}}l@{{}}}}{{\emph{{no results of this protocol}}}}"
                 out.append(_row([name, note]))
                 continue
             notes = {}
@@ -312,11 +414,11 @@ def latex_table(
                         ]
                     )
                 )
-                if protocol != "random" or block:
+                if not (with_paper and paper_name):
                     continue
-                pc = p[(p["key"] == paper_key(paper_name)) & (p["n_train"] == n)].set_index(
-                    "method"
-                )
+                pc = paper[
+                    (paper["key"] == paper_key(paper_name)) & (paper["n_train"] == n)
+                ].set_index("method")
                 if not any(labels.get(m, m) in pc.index for m in methods):
                     continue
                 pl = [labels.get(m, m) for m in methods]
@@ -331,18 +433,13 @@ def latex_table(
                 ]
                 out.append(_row([r"\emph{\quad paper}", ""] + cells))
         out += [r"\bottomrule", r"\end{tabular}"]
-        studied = set(
-            sp["activity"]
-        )  # status: {paper activity: studied activity, or a dict saying why none}
-        shown = [
-            a
-            for pa in PAPER_TABLES[table]
-            for a in [status.get(pa)]
-            if isinstance(a, str) and a in frames and a in studied
-        ]
+        studied = set(sp["activity"])
+        shown = list(dict.fromkeys(a for _, a, _ in rows if a in frames and a in studied))
         if shown:
             text = "; ".join(f"{a}: {frames[a]}" for a in shown)
             out.append(r"\par\smallskip{\scriptsize Frames. " + latex_escape(text) + ".}")
+        if under:
+            out.append(under)
         out += [r"\end{table}", ""]
     return "\n".join(out)
 
@@ -362,6 +459,14 @@ def latex_tables(summary, paper, *, methods, groups, reference="PM", **kwargs):
     """:func:`latex_table` for each block of :func:`table_blocks`, bolding the best over all ``methods``."""
     return "\n".join(
         latex_table(summary, paper, methods=ms, best_of=methods, block=block, **kwargs)
+        for block, ms in table_blocks(methods, groups, reference)
+    )
+
+
+def activities_tables(summary, *, methods, groups, reference="PM", **kwargs):
+    """:func:`activities_table` for each block of :func:`table_blocks`, bolding the best over all ``methods``."""
+    return "\n".join(
+        activities_table(summary, methods=ms, best_of=methods, block=block, **kwargs)
         for block, ms in table_blocks(methods, groups, reference)
     )
 

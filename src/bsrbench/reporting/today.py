@@ -187,6 +187,19 @@ def plot_pit(panels, *, labels, bins=10):
 
     sources = sorted({s for s, _ in panels})
     methods = list(dict.fromkeys(m for _, m in panels))
+    if not panels:
+        # a study without a predictive distribution: the figure says so (the report's section does too)
+        fig, ax = plt.subplots(figsize=(3.0, 0.8))
+        ax.set_axis_off()
+        ax.text(
+            0.5,
+            0.5,
+            "no PIT values: no method with a predictive\ndistribution was run",
+            ha="center",
+            va="center",
+            fontsize=8,
+        )
+        return fig
     fig, axes = plt.subplots(
         len(sources),
         len(methods),
