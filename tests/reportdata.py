@@ -28,6 +28,18 @@ def paper_frame():
     return df
 
 
+def estimator_of(method):
+    """The configured estimator of ``method`` (config/config.yaml, then the ablation's variants), as a result row
+    records it; a toy module for a name no configuration knows."""
+    from bsrbench.methods import configured
+
+    for study in (None, "ablation"):
+        registry = configured(study)
+        if method in registry:
+            return registry[method].estimator
+    return "toy_module:Toy"
+
+
 def result_rows(errors):
     """errors: {(activity, method): [error per seed]} -> result rows (hsc, random, N=30)."""
     rows = []
@@ -40,6 +52,7 @@ def result_rows(errors):
                     "activity": act,
                     "paper_activity": act.capitalize(),
                     "method": m,
+                    "estimator": estimator_of(m),
                     "n_train": 30,
                     "seed": seed,
                     "error": e,

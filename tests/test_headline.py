@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from reportdata import estimator_of
 
 from bsrbench.methods import configured
 from bsrbench.reporting import comparisons as cmp
@@ -63,6 +64,7 @@ def _rows(cells, mpjpe=None):
                         activity=a,
                         n_train=n,
                         method=m,
+                        estimator=estimator_of(m),
                         seed=seed,
                         error=e + 0.1 * seed,
                         n_test=500,

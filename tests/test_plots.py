@@ -316,11 +316,12 @@ def test_error_figure_draws_the_paper_methods_and_the_others_in_panels_of_their_
     from bsrbench.reporting.plots import figure_blocks, plot_error_vs_ntrain
 
     labels = {**LABELS, "KNN": "k-NN"}
-    assert figure_blocks(["PM", "RVM", "NN1", "KNN"], labels) == [
+    names = {"PM": "PM", "RVM": "RVM", "NN1": None, "KNN": None}
+    assert figure_blocks(["PM", "RVM", "NN1", "KNN"], names) == [
         ("the paper's methods", ["PM", "RVM"]),
         ("references and today's baselines", ["PM", "NN1", "KNN"]),
     ]
-    assert figure_blocks(["PM", "RVM"], labels) == [(None, ["PM", "RVM"])]
+    assert figure_blocks(["PM", "RVM"], names) == [(None, ["PM", "RVM"])]
     df = aggregate_rows(
         result_rows(
             {

@@ -12,6 +12,7 @@ from .plots import (
     figure_blocks,
     paper_points_not_drawn,
 )
+from .tables import paper_names
 
 #: The figure kinds of the section, as their file names begin (``<kind>_<source>.pdf``).
 KINDS = ("error_vs_ntrain", "subjective", "calibration")
@@ -78,7 +79,7 @@ def not_drawn(study, source):
 
 def blocks_text(study):
     """The sentence on Fig. 1's two rows of panels (:func:`bsrbench.reporting.plots.figure_blocks`), or ""."""
-    blocks = figure_blocks(list(study.figure_methods), study.labels)
+    blocks = figure_blocks(list(study.figure_methods), paper_names(study.df))
     if len(blocks) == 1:
         return ""
     beside = " beside PM" if blocks[1][1][:1] == ["PM"] else ""

@@ -9,10 +9,11 @@ calibration of the predictive intervals.
 import numpy as np
 
 from ..io import atomic_path
+from ..splits import PROTOCOLS
 from .comparisons import pm_counts
 from .latex import escape, listing, nobreak, percent, table
 from .study_setup import method_order, parameters_table, setup_text
-from .tables import PAPER_METHODS, activity_label, summarize
+from .tables import PAPER_METHODS, activity_label, paper_names, summarize
 
 
 def _pairs(s, protocol, n):
@@ -155,16 +156,16 @@ def findings(df, paper, *, labels, pm="PM", references=("NN1", "Ridge"), compari
     out = []
     s = summarize(df)
     methods = method_order(df, labels)
-    baselines = [m for m in methods if labels.get(m, m) in PAPER_METHODS and m != pm]
+    names = paper_names(df)
+    baselines = [m for m in methods if names.get(m) in PAPER_METHODS and names.get(m) != "PM"]
     refs = [m for m in references if m in methods]
     L = lambda m: escape(labels.get(m, m))  # noqa: E731
-    order = ("random", "contiguous", "cross_trial")
-    protocols = [p for p in order if p in set(df["protocol"])] + sorted(
-        set(df["protocol"]) - set(order)
+    protocols = [p for p in PROTOCOLS if p in set(df["protocol"])] + sorted(
+        set(df["protocol"]) - set(PROTOCOLS)
     )
     sources = list(dict.fromkeys(df["source"]))
     if pm not in methods:
-        variants = [m for m in methods if m.startswith(pm)]
+        variants = [m for m in methods if names.get(m) == "PM"]
         return [
             f"No method named {escape(pm)} was run, so the paper's claims about it are not checked here"
             + (

@@ -16,6 +16,7 @@ from ..errors import DataFileError
 from ..io import atomic_path
 from ..paper import PAPER_METHODS
 from . import comparisons as cmp
+from .tables import paper_names
 from .verdict import UNITS
 
 #: The README's blocks generated here, by marker name.
@@ -153,9 +154,10 @@ def findings_markdown(
             )
         out.append(text)
     # the paper's claim: PM better than its four baselines
+    names = paper_names(df)
     paper_base = sorted(
-        (m for m in w.columns if L(m) in PAPER_METHODS and m != pm),
-        key=lambda m: PAPER_METHODS.index(L(m)),
+        (m for m in w.columns if names.get(m) in PAPER_METHODS and names.get(m) != "PM"),
+        key=lambda m: PAPER_METHODS.index(names[m]),
     )
     if pm in w.columns and paper_base:
         beats = w[paper_base].gt(w[pm], axis=0)

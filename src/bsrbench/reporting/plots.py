@@ -26,7 +26,7 @@ import numpy as np
 from ..io import atomic_path
 from ..metrics import wrap_degrees
 from ..paper import PAPER_METHODS
-from .tables import activity_label, paper_key, summarize
+from .tables import activity_label, paper_key, paper_names, summarize
 
 #: Figures are drawn at the size they are printed (the report includes them unscaled; at most TEXT_WIDTH
 #: inches wide), so these are the printed font sizes: none below 7 pt.
@@ -210,12 +210,12 @@ PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "cross_trial": "-."}
 PROTOCOL_LINE_NAMES = {"-": "solid", "--": "dashed", "-.": "dash-dotted"}
 
 
-def figure_blocks(methods, labels, reference="PM"):
+def figure_blocks(methods, names, reference="PM"):
     """Fig. 1's blocks of methods, each drawn in panels of its own so that a dozen methods stay legible:
-    ``[(title, methods), ...]``: the paper's methods (those whose label is one of the paper's, with the paper's
-    dotted lines), then the others (references and today's baselines) beside ``reference`` (the paper's PM, when
+    ``[(title, methods), ...]``: the paper's methods (those whose estimator reproduces a column of the paper's
+    tables, ``names`` from :func:`.tables.paper_names`, with the paper's dotted lines), then the others (references and today's baselines) beside ``reference`` (the paper's PM, when
     drawn), which keeps its colour. One block ``(None, methods)`` when either is empty."""
-    paper = [m for m in methods if labels.get(m, m) in PAPER_METHODS]
+    paper = [m for m in methods if names.get(m) in PAPER_METHODS]
     rest = [m for m in methods if m not in paper]
     if not paper or not rest:
         return [(None, list(methods))]
@@ -238,7 +238,7 @@ def plot_error_vs_ntrain(df, paper, *, source, methods, labels, n_train=None):
     s = summarize(df[df["source"] == source])
     acts = list(dict.fromkeys(df.loc[df["source"] == source, "activity"]))
     sizes = sorted(int(n) for n in (n_train if n_train is not None else df["n_train"].unique()))
-    blocks = figure_blocks(methods, labels)
+    blocks = figure_blocks(methods, paper_names(df))
     if len(blocks) == 1:
         fig, axes = _panels(len(acts), panel_height=2.6 if len(acts) == 1 else 2.3)
         _error_block(fig, axes, s, acts, methods, methods, paper, labels, sizes)

@@ -83,6 +83,17 @@ def activity_label(activity, paper_activity=None):
     return str(activity).replace("_", " ").capitalize()
 
 
+def paper_names(df):
+    """{method: the paper's name of its estimator (a column of Tables I-II: "RVM", ..., "PM") or None}, from the
+    rows' ``estimator`` column (:func:`bsrbench.methods.paper_name`); {} for rows without one."""
+    from ..methods import paper_name
+
+    if "estimator" not in df.columns:
+        return {}
+    first = df.dropna(subset=["estimator"]).groupby("method", sort=False)["estimator"].first()
+    return {m: paper_name(str(est)) for m, est in first.items()}
+
+
 def read_paper_tables(path):
     """The paper's Tables I and II as rows (table, activity, n_train, method, mean_deg, std_deg), keyed by our ids."""
     df = read_csv(path, "the paper's tables")
