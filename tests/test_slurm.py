@@ -54,7 +54,7 @@ GATED_JOB = ("NN1", "1")  # method, seed
 GATE_MODULE = """
 import json, os, sys, time
 if "bsrbench.jobs:fit" in sys.argv:
-    w = json.loads(sys.argv[sys.argv.index("bsrbench.jobs:fit") + 1])["wildcards"]
+    w = next(json.loads(a)["wildcards"] for a in sys.argv if a.startswith('{{"input"'))
     if (w["method"], str(w["seed"])) == {job!r}:
         deadline = time.monotonic() + 900
         while not os.path.exists({gate!r}) and time.monotonic() < deadline:
@@ -255,8 +255,8 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
     """Status by sacct (slurmdbd, MariaDB); the main Snakemake process killed with SIGKILL mid-run; after
     `--unlock` the rerun submits exactly the fit and CV jobs whose results are missing or incomplete.
 
-    One fit job (GATED_JOB) cannot finish before the test opens its gate, after the kill: however fast the
-    machine, the kill lands with that job unfinished and at least two others done."""
+    One fit job (GATED_JOB) cannot finish before the test opens its gate: the kill lands with it unfinished
+    and at least two others done, and it is then cancelled, so that it is missing however fast the machine."""
     local_tables, local_jobs = local_run
     work = copy_tree(tmp_path)
     log = work / "run.log"
@@ -279,18 +279,22 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
         finally:
             if proc.poll() is None:
                 proc.kill()
-            gate.touch()
         first = run_id(log.read_text())
-        # The jobs it had submitted run to their end on their own.
+        # The gated job, if submitted, is cancelled (found by squeue: slurmctld's records, which sacct's may
+        # lag); the other jobs it had submitted run to their end on their own.
+        method, seed = GATED_JOB
+        for jobid, rule, wildcards, _ in slurm_jobs(first, False):
+            if rule == "fit" and wildcards.endswith(f"_{method}_30_{seed}"):
+                subprocess.run(["scancel", jobid], check=True)
         deadline = time.monotonic() + 300
         while any(s in ("PENDING", "RUNNING") for *_, s in slurm_jobs(first, True)):
             assert time.monotonic() < deadline
             time.sleep(1)
+        gate.touch()  # the rerun's jobs pass
         done = cluster_jobs(work)
         incomplete = incomplete_outputs(work)
         kept = done - {job_of(p) for p in incomplete}
         missing = local_jobs - kept
-        method, seed = GATED_JOB
         assert any(r == "fit" and w.endswith(f"_{method}_30_{seed}") for r, w in missing), missing
         assert 0 < len(missing) < len(local_jobs), (done, incomplete)
 
