@@ -17,6 +17,9 @@ The older revision's package comes from ``git archive <rev> src/bsrbench``. Both
 timings (checked and printed).
 
     .venv/bin/python benchmarks/bench_job_floor.py 8e7ce46 --activity golf --n-train 200 --repeats 21
+
+``--method PM --method RVM ...`` adds the fit job of each named method (its ``params`` in ``config/config.yaml``
+read over by ``--study``'s file, e.g. ``--study paper``; no split-conformal refit) to the A/B, in the same rounds.
 """
 
 import argparse
@@ -54,7 +57,7 @@ def old_package(rev, workdir):
 class Revision:
     """One revision's warm job server and its job commands."""
 
-    def __init__(self, name, src, tmp, features, n_train, activity):
+    def __init__(self, name, src, tmp, features, n_train, activity, methods=()):
         self.name, self.dir = name, Path(tmp) / name.replace(" ", "_")
         self.dir.mkdir()
         self.env = dict(
@@ -93,6 +96,19 @@ class Revision:
             + log,
             "no-op job": base + ["bsrbench.jobserver:ping", ping] + log,
         }
+        for method, (estimator, params) in methods.items():
+            out_m = {k: v.replace(".", f"_{method}.", 1) for k, v in out.items()}
+            job_m = json.dumps(
+                {
+                    "input": {"features": str(features)},
+                    "output": out_m,
+                    "wildcards": {**wildcards, "method": method},
+                }
+            )
+            settings_m = dict(settings, estimator=estimator, fixed=params)
+            self.commands[f"{method} fit job"] = (
+                base + ["bsrbench.jobs:fit", job_m, "--settings", json.dumps(settings_m)] + log
+            )
         self.server = subprocess.Popen(
             [sys.executable, "-m", "bsrbench.jobserver", str(self.dir / "s.sock"), "bsrbench.jobs"],
             env=self.env,
@@ -198,6 +214,19 @@ def phases(features, activity, n_train, repeats):
     return med
 
 
+def method_settings(names, study):
+    """{name: (estimator, params)} of the methods ``names`` in config/config.yaml read over by config/STUDY.yaml."""
+    import yaml
+
+    merged = {}
+    for path in [ROOT / "config" / "config.yaml", ROOT / "config" / f"{study}.yaml"][
+        : 2 if study else 1
+    ]:
+        for name, entry in (yaml.safe_load(path.read_text()).get("methods") or {}).items():
+            merged[name] = {**merged.get(name, {}), **(entry or {})}
+    return {n: (merged[n]["estimator"], merged[n].get("params") or {}) for n in names}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -211,7 +240,10 @@ def main(argv=None):
     ap.add_argument("--activity", default="golf")
     ap.add_argument("--n-train", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=21)
+    ap.add_argument("--method", action="append", default=[], help="also time this method's fit job")
+    ap.add_argument("--study", default=None, help="read config/STUDY.yaml over config/config.yaml")
     args = ap.parse_args(argv)
+    methods = method_settings(args.method, args.study)
     features = Path(
         args.features or ROOT / "results" / "features" / "hsc" / f"{args.activity}.npz"
     ).resolve()
@@ -229,8 +261,11 @@ def main(argv=None):
                 features,
                 args.n_train,
                 args.activity,
+                methods,
             ),
-            Revision("this checkout", ROOT / "src", tmp, features, args.n_train, args.activity),
+            Revision(
+                "this checkout", ROOT / "src", tmp, features, args.n_train, args.activity, methods
+            ),
         ]
         times = {(r.name, what): [] for r in revs for what in ("python -c pass", *r.commands)}
         try:
@@ -256,7 +291,7 @@ def main(argv=None):
         f"average {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end\n"
     )
     print(f"| command | {args.rev} ms | this checkout ms | ratio |\n|---|---:|---:|---:|")
-    for what in ("1-NN fit job", "no-op job", "python -c pass"):
+    for what in ("1-NN fit job", *(f"{m} fit job" for m in methods), "no-op job", "python -c pass"):
         old, new = (statistics.median(times[(r.name, what)]) * 1e3 for r in revs)
         print(f"| {what} | {old:.1f} | {new:.1f} | {old / new:.2f}x |")
     pa = abs(rows[0]["pa_mpjpe_mm"] - rows[1]["pa_mpjpe_mm"])

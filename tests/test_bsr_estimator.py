@@ -142,6 +142,54 @@ def test_prediction_batch_invariant_and_weighting():
     np.testing.assert_allclose(lw, np.einsum("tl,tlm->tm", wts_l, draws_l), rtol=1e-12)
 
 
+@pytest.mark.parametrize("weighting", ["uniform", "likelihood"])
+def test_one_prediction_pass_equals_predict_and_predict_draws(weighting, monkeypatch):
+    """predict_with_draws: predict(return_std=True) and predict_draws bit for bit (chunked too), from one pass of
+    the sampler over the test points; the result row of a PM job passes the test points once."""
+    import bsrbench.models.bsr as bsr_module
+
+    X, Y = _toy()
+    m = BayesianSR(**SMALL, prediction_weighting=weighting).fit(X[:30], Y[:30])
+    monkeypatch.setattr(bsr_module, "_CHUNK", 4)  # three chunks of the 10 test points
+    mean, sd = m.predict(X[30:], return_std=True)
+    draws, wts = m.predict_draws(X[30:])
+    passes = []
+    sample = BayesianSR._predict_draws
+    monkeypatch.setattr(
+        BayesianSR, "_predict_draws", lambda self, X, j: passes.append(len(X)) or sample(self, X, j)
+    )
+    one = m.predict_with_draws(X[30:])
+    assert passes == [4, 4, 2]
+    for got, want in zip(one, (mean, sd, draws, wts)):
+        np.testing.assert_array_equal(got, want)
+    # one output: mean and std flattened as predict's
+    m1 = BayesianSR(**SMALL).fit(X[:30], Y[:30, 0])
+    got = m1.predict_with_draws(X[30:])
+    np.testing.assert_array_equal(got[0], m1.predict(X[30:]))
+    assert got[1].shape == (10,) and got[2].shape == (10, 5, 1)
+
+
+def test_a_pm_job_samples_the_test_points_once(monkeypatch, tmp_path, synthetic_features):
+    """run_job predicts PM's test frames in one pass (mean, std and the scored draws) and its training frames in
+    another (the training error): two passes, where predict and predict_draws made three."""
+    from bsrbench.io import load_features
+    from bsrbench.runs import run_job
+    from bsrbench.splits import JobSpec
+
+    feats = load_features(synthetic_features(tmp_path, n=80))
+    passes = []
+    sample = BayesianSR._predict_draws
+    monkeypatch.setattr(
+        BayesianSR, "_predict_draws", lambda self, X, j: passes.append(len(X)) or sample(self, X, j)
+    )
+    spec = JobSpec("syn", "act", "PM", 40, 0, min_test=30)
+    row, arrays = run_job(
+        spec, feats, estimator="bsrbench.models.bsr:BayesianSR", params=dict(SMALL, n_atoms=4)
+    )
+    assert passes == [arrays["test"].size, arrays["train"].size]
+    assert row["scores_from"] == "samples" and "y_std" in arrays
+
+
 def test_traces_samples_and_logging(caplog):
     X, Y = _toy()
     with caplog.at_level(logging.INFO, logger="bsrbench.models.bsr"):

@@ -391,6 +391,63 @@ def test_preload_imports_the_job_module_and_runs_the_warm_ups(tmp_path, monkeypa
     assert (tmp_path / "jobs.warm").is_file() and (tmp_path / "model.warm").is_file()
 
 
+#: Run in a fresh interpreter: preload as a job server does, then run a small job of every configured method (fit
+#: with split conformal, and for PM and Ridge a CV, for PM two chains pooled) and print the modules the jobs imported.
+_JOBS_AFTER_PRELOAD = """
+import json, sys
+from bsrbench import jobserver
+jobserver._preload(["bsrbench.jobs"])
+before = set(sys.modules)
+from bsrbench.io import load_features
+from bsrbench.methods import configured
+from bsrbench.runs import cross_validate, pool_chains, run_chain, run_job
+from bsrbench.splits import JobSpec
+feats = load_features(sys.argv[1])
+small = {"PM": {"n_atoms": 4, "n_neighbors": 2, "n_iter": 8, "n_burn_in": 4, "thin": 2},
+         "RF": {"n_estimators": 3}, "MLP": {"hidden_units": 4}}
+for name, m in configured().items():
+    spec, params = JobSpec("syn", "act", name, 60, 0, min_test=30), small.get(name, {})
+    run_job(spec, feats, estimator=m.estimator, params=params, conformal={"level": 0.9, "params": {}})
+    if name in ("PM", "Ridge"):
+        grid = {"n_neighbors": [1, 2]} if name == "PM" else {"alpha": [0.1, 1.0]}
+        cross_validate(spec, feats, estimator=m.estimator, params=params, grid=grid, folds=2)
+    if name == "PM":
+        chains = [run_chain(spec, feats, estimator=m.estimator, params=params, chain=c) for c in (0, 1)]
+        pool_chains(spec, feats, chains, estimator=m.estimator, params=params)
+print(json.dumps(sorted(set(sys.modules) - before)))
+"""
+#: Modules that packages import lazily inside their own functions, which no import statement of ours names.
+_LAZY_INSIDE_PACKAGES = {"pandas.core.methods.to_dict"}  # DataFrame.to_dict (the CV table)
+
+
+def test_the_derived_preload_holds_every_module_a_job_of_each_method_imports(
+    tmp_path, synthetic_features
+):
+    """After the server's preload (jobs.PRELOAD, derived from the import graph), the jobs of every configured
+    method import no module of another package: e.g. scoringrules (the CRPS; its import compiles numba
+    functions for seconds) and ArviZ (R-hat of pooled chains) are loaded once, in the server."""
+    from bsrbench import jobs
+
+    preload = jobs.PRELOAD
+    assert {"scoringrules", "arviz", "sklearn.gaussian_process", "bsrbench.runs"} <= set(preload)
+    assert "bsrbench.reporting" not in preload  # only what the jobs import
+    out = subprocess.run(
+        [sys.executable, "-c", _JOBS_AFTER_PRELOAD, str(synthetic_features(tmp_path, n=120))],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
+    assert out.returncode == 0, out.stderr
+    new = json.loads(out.stdout.strip().splitlines()[-1])
+    foreign = {
+        m
+        for m in new
+        if m.partition(".")[0] not in sys.stdlib_module_names and not m.startswith("bsrbench")
+    }
+    assert foreign <= _LAZY_INSIDE_PACKAGES, sorted(foreign - _LAZY_INSIDE_PACKAGES)
+
+
 # ------------------------------------------------------------------------------ only this user (issue 33)
 def _nobody():
     """uid and gid of the user ``nobody``; the test is skipped unless it runs as root (as in CI)."""

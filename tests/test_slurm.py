@@ -42,8 +42,32 @@ SLURM_ARGS = (
 DAEMONS = ("munged", "mariadbd", "slurmdbd", "slurmctld", "slurmd")
 
 
-def env():
-    return dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+def env(**extra):
+    return dict(
+        os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}", **extra
+    )
+
+
+# A `sitecustomize` module (Python imports it at start-up from PYTHONPATH, which sbatch passes on to the jobs):
+# the fit job of GATED_JOB waits until the file GATE exists, so that a test decides when it may finish.
+GATED_JOB = ("NN1", "1")  # method, seed
+GATE_MODULE = """
+import json, os, sys, time
+if "bsrbench.jobs:fit" in sys.argv:
+    w = next(json.loads(a)["wildcards"] for a in sys.argv if a.startswith('{{"input"'))
+    if (w["method"], str(w["seed"])) == {job!r}:
+        deadline = time.monotonic() + 900
+        while not os.path.exists({gate!r}) and time.monotonic() < deadline:
+            time.sleep(0.2)
+"""
+
+
+def gated_env(work):
+    """The environment of a run whose fit job GATED_JOB waits for the file ``work/gate``; and that path."""
+    folder, gate = work / "sitecustomize", work / "gate"
+    folder.mkdir()
+    (folder / "sitecustomize.py").write_text(GATE_MODULE.format(job=GATED_JOB, gate=str(gate)))
+    return env(PYTHONPATH=str(folder)), gate
 
 
 def smk(*args, cwd, timeout=900):
@@ -229,15 +253,19 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
     tmp_path, local_run
 ):
     """Status by sacct (slurmdbd, MariaDB); the main Snakemake process killed with SIGKILL mid-run; after
-    `--unlock` the rerun submits exactly the fit and CV jobs whose results are missing or incomplete."""
+    `--unlock` the rerun submits exactly the fit and CV jobs whose results are missing or incomplete.
+
+    One fit job (GATED_JOB) cannot finish before the test opens its gate: the kill lands with it unfinished
+    and at least two others done, and it is then cancelled, so that it is missing however fast the machine."""
     local_tables, local_jobs = local_run
     work = copy_tree(tmp_path)
     log = work / "run.log"
+    gated_env_, gate = gated_env(work)
     with slurm_cluster("--accounting"):
         with open(log, "w") as fh:
             proc = subprocess.Popen(
                 [SNAKEMAKE, TARGET, *SLURM_ARGS, "--slurm-status-command", "sacct", *STUDY],
-                cwd=work, stdout=fh, stderr=subprocess.STDOUT, env=env(),
+                cwd=work, stdout=fh, stderr=subprocess.STDOUT, env=gated_env_,
             )  # fmt: skip
         try:
             deadline = time.monotonic() + 300
@@ -252,15 +280,22 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
             if proc.poll() is None:
                 proc.kill()
         first = run_id(log.read_text())
-        # The jobs it had submitted run to their end on their own.
+        # The gated job, if submitted, is cancelled (found by squeue: slurmctld's records, which sacct's may
+        # lag); the other jobs it had submitted run to their end on their own.
+        method, seed = GATED_JOB
+        for jobid, rule, wildcards, _ in slurm_jobs(first, False):
+            if rule == "fit" and wildcards.endswith(f"_{method}_30_{seed}"):
+                subprocess.run(["scancel", jobid], check=True)
         deadline = time.monotonic() + 300
         while any(s in ("PENDING", "RUNNING") for *_, s in slurm_jobs(first, True)):
             assert time.monotonic() < deadline
             time.sleep(1)
+        gate.touch()  # the rerun's jobs pass
         done = cluster_jobs(work)
         incomplete = incomplete_outputs(work)
         kept = done - {job_of(p) for p in incomplete}
         missing = local_jobs - kept
+        assert any(r == "fit" and w.endswith(f"_{method}_30_{seed}") for r, w in missing), missing
         assert 0 < len(missing) < len(local_jobs), (done, incomplete)
 
         res = smk(TARGET, *SLURM_ARGS, *STUDY, "--unlock", cwd=work)

@@ -13,19 +13,17 @@ from types import SimpleNamespace
 
 def __getattr__(name):
     """``PRELOAD``: the modules a job server imports once before forking the jobs, running their ``warm_up()`` if
-    they have one (:mod:`bsrbench.jobserver`): the job logic and the model modules, derived from the package's
-    import graph (:func:`bsrbench.methods.job_preload`) when asked for, since reading the graph takes a while."""
+    they have one (:mod:`bsrbench.jobserver`), derived from the package's import graph when asked for, since reading
+    it takes a while: the job logic and the model modules (:func:`bsrbench.methods.job_preload`), after every module
+    of another package that they import, at module level or inside a function
+    (:func:`bsrbench.sources.external_imports`). A job then imports nothing itself: e.g. scoringrules compiles its
+    numba functions when imported (seconds), ArviZ its ufuncs (which a fork could not keep)."""
     if name == "PRELOAD":
         from .methods import job_preload
+        from .sources import external_imports
 
-        return (
-            "numpy",
-            "scipy.stats",
-            "sklearn.base",
-            *job_preload(),
-            # R-hat and ESS of the pool_chains jobs; its import compiles numba ufuncs, which a fork cannot
-            "arviz",
-        )
+        own = job_preload()
+        return (*external_imports(own), *own)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

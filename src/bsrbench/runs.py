@@ -92,6 +92,19 @@ def _scored_draws(spec, split, est, X_test, draws=None):
     return angle_draws(split.transform, draws), weights
 
 
+def _predict_test(est, X_test):
+    """``(mean, std or None, (draws, weights) or None)`` of the test frames: from one pass of the sampler for an
+    estimator with ``predict_with_draws`` (PM: its draws are what the mean and std average), else from
+    ``predict`` (with ``return_std`` where supported)."""
+    if hasattr(est, "predict_with_draws"):
+        mean, std, draws, weights = est.predict_with_draws(X_test)
+        return mean, std, (draws, weights)
+    if supports_std(est):
+        mean, std = est.predict(X_test, return_std=True)
+        return mean, std, None
+    return est.predict(X_test), None, None
+
+
 def _train_error(split, z_train):
     """The paper's error on the training frames from their predictions in the transformed space."""
     return mean_angle_error(split.Y[split.train], split.transform.inverse(z_train))
@@ -241,12 +254,9 @@ def run_job(spec, features, *, estimator, params, cv_mode="none", cv_seconds=Non
     est, fit_seconds = split.fit(estimator, params, spec.method_seed)
     X_test = split.X[split.test]
     t0 = time.perf_counter()
-    if supports_std(est):
-        Z_mean, Z_std = est.predict(X_test, return_std=True)
-    else:
-        Z_mean, Z_std = est.predict(X_test), None
+    Z_mean, Z_std, noise_free = _predict_test(est, X_test)
     predict_seconds = time.perf_counter() - t0
-    samples, weights = _scored_draws(spec, split, est, X_test)
+    samples, weights = _scored_draws(spec, split, est, X_test, draws=noise_free)
     row, arrays = _score(
         spec,
         split,
@@ -431,14 +441,12 @@ def run_chain(spec, features, *, estimator, params, chain, conformal=None):
     est, fit_seconds = split.fit(estimator, params, seed)
     t0 = time.perf_counter()
     out = {"train": split.train, "test": test}
-    if supports_std(est):
-        z_mean, z_std = est.predict(X_test, return_std=True)
+    z_mean, z_std, noise_free = _predict_test(est, X_test)
+    if z_std is not None:
         out["z_var"] = np.square(np.asarray(z_std, dtype=float))
-    else:
-        z_mean = est.predict(X_test)
     out["z_mean"] = np.asarray(z_mean, dtype=float)
     if hasattr(est, "predict_draws"):
-        noise_free = est.predict_draws(X_test)
+        noise_free = est.predict_draws(X_test) if noise_free is None else noise_free
         draws = np.asarray(noise_free[0], dtype=float)
         if draws.ndim != 3 or draws.shape[0] != test.size:
             raise InputError(

@@ -3,7 +3,8 @@
 Every ``import`` and ``from ... import`` statement counts, at module level or inside a function, with relative
 imports resolved. The study derives from it the source files whose edit reruns a method's jobs
 (:meth:`bsrbench.config.Study.estimator_sources`) and the modules a job server preloads
-(:data:`bsrbench.jobs.PRELOAD`); tests/test_architecture.py checks with it that the package has no import cycle
+(:data:`bsrbench.jobs.PRELOAD`, with the other packages' modules they import, :func:`external_imports`);
+tests/test_architecture.py checks with it that the package has no import cycle
 and that its layers import only downwards (docs/architecture.md).
 """
 
@@ -54,6 +55,40 @@ def _imported(path, name, modules):
             if target and target != name:
                 found.add(target)
     return found
+
+
+def _external(path, package):
+    """The absolute imports of the source file ``path`` outside ``package``: the dotted names of ``import a.b`` and
+    ``from a.b import c`` (``a.b.c`` too, which is the module imported when ``c`` is a submodule)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names if a.name != "*"]
+        else:
+            continue
+        found.update(n for n in names if n.partition(".")[0] != package)
+    return found
+
+
+def external_imports(names, package="bsrbench", root=ROOT):
+    """The modules of other packages that the package's modules ``names`` import, at module level or inside a
+    function (sorted dotted names), keeping those that are installed: a name whose top package is missing (an
+    optional import) and a ``from a import c`` whose ``c`` is not a module of ``a`` are left out. Finding a
+    dotted module imports its parent packages, so call this where importing them is wanted (a job server)."""
+    import importlib.util
+
+    files = module_files(package, root)
+    wanted = set().union(*(_external(files[name], package) for name in names))
+    out = []
+    for name in sorted(wanted):
+        try:
+            if importlib.util.find_spec(name) is not None:
+                out.append(name)
+        except (ImportError, ValueError):  # a parent that is no package, or missing
+            pass
+    return out
 
 
 @functools.cache

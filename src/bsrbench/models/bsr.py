@@ -585,26 +585,42 @@ class BayesianSR(RegressorMixin, BaseEstimator):
         The std combines the spread of the per-sample predictions and the noise variance 1/g_xy (1/g_ny, the
         output rows' noise, with ``noise="separate"``). ``n_neighbors`` overrides the fitted value for this call.
         """
+        y, std, _, _ = self._predict_pass(X, n_neighbors, draws=False)
+        return (y, std) if return_std else y
+
+    def predict_with_draws(self, X, n_neighbors=None):
+        """:meth:`predict` with ``return_std=True`` and :meth:`predict_draws` from one pass of the sampler over
+        the test points: ``(mean, std, draws, weights)``, each equal to what those two methods return."""
+        return self._predict_pass(X, n_neighbors, draws=True)
+
+    def _predict_pass(self, X, n_neighbors, draws):
+        """(mean, std, draws or None, weights or None) of :meth:`predict_with_draws`, chunk by chunk."""
         check_is_fitted(self, "samples_")
         check_finite_input(self, X)
         X = validate_data(self, X, reset=False, dtype=np.float64)
         parts = [
-            self._predict_chunk(X[i : i + _CHUNK], n_neighbors)
+            self._predict_chunk(X[i : i + _CHUNK], n_neighbors, draws)
             for i in range(0, max(X.shape[0], 1), _CHUNK)
         ]
         y = clip_to_bounds(np.concatenate([p[0] for p in parts]), self.y_bounds_)
         std = np.concatenate([p[1] for p in parts])
         if self.y_ndim_ == 1:
             y, std = y.ravel(), std.ravel()
-        return (y, std) if return_std else y
+        if not draws:
+            return y, std, None, None
+        return y, std, np.concatenate([p[2] for p in parts]), np.concatenate([p[3] for p in parts])
 
-    def _predict_chunk(self, X, n_neighbors):
+    def _predict_chunk(self, X, n_neighbors, draws=False):
         out_y, out_ll, s = self._predict_draws(X, n_neighbors)
         wts = self._weights(out_ll)
         mean = np.einsum("tl,tlm->tm", wts, out_y)
         spread = np.einsum("tl,tlm->tm", wts, (out_y - mean[:, None, :]) ** 2)
         noise = wts @ (1.0 / s["g_ny"])
-        return mean * self.y_scale_ + self.y_mean_, np.sqrt(spread + noise[:, None]) * self.y_scale_
+        mean_y = mean * self.y_scale_ + self.y_mean_
+        std = np.sqrt(spread + noise[:, None]) * self.y_scale_
+        if not draws:
+            return mean_y, std
+        return mean_y, std, out_y * self.y_scale_ + self.y_mean_, wts
 
 
 def training_error(estimator, X_train, Y_train, inverse=None):
