@@ -224,3 +224,28 @@ def test_merging_a_new_part_into_a_restamped_table_keeps_its_restamp_record(stud
     prov = json.loads(freshness.provenance_path(study).read_text())
     assert len(prov["methods"]["NN1"]["restamped"]["rows_rerun"]) == 3
     assert freshness.check_table(study)[1] is False
+
+
+@pytest.mark.parametrize("content", [None, b"", b"\x00\x01\x02binary"])
+def test_check_of_a_missing_or_corrupt_table_is_one_line_and_exit_2(tmp_path, capsys, content):
+    from bsrbench.reporting.published import main
+
+    table = tmp_path / "paper.csv"
+    if content is not None:
+        table.write_bytes(content)
+    assert main(["check", str(table)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {table}: ") and err[0].count(str(table)) == 1
+
+
+def test_merge_into_a_folder_is_one_line_and_exit_2(tmp_path, capsys):
+    from bsrbench.reporting.published import main
+
+    part = tmp_path / "part.csv"
+    pd.read_csv(ROOT.parent / "reports" / "published" / "ablation-crosstrial.csv").head(3).to_csv(
+        part, index=False
+    )
+    (tmp_path / "dest.csv").mkdir()
+    assert main(["merge", str(part), str(tmp_path / "dest.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot write the merged table" in err[0]

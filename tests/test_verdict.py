@@ -158,3 +158,11 @@ def test_section_latex_tables_and_the_one_block_line():
     one = section_latex(verdict(_rows({("golf", 30): hsc[("golf", 30)]})), labels={})
     assert r"\begin{table}" not in one
     assert "1 complete block, so no test across blocks." in one
+
+
+def test_section_latex_without_pm_says_so():
+    from bsrbench.reporting.verdict import section_latex
+
+    t = {("golf", n): {"A": 5.0 + i, "B": 4.0, "C": 6.0 + i} for i, n in enumerate((30, 60, 100))}
+    tex = section_latex(verdict(_rows(t)), labels={})
+    assert "PM was not run in this study: the tables give the mean ranks and Friedman's test only." in tex

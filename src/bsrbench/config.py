@@ -70,7 +70,10 @@ def configfile_problem(path):
         where = getattr(exc, "problem_mark", None)
         line = f" at line {where.line + 1}" if where is not None else ""
         return f"--configfile {path}: not valid YAML{line} ({str(exc).splitlines()[0]}); {expected}"
-    if data is not None and not isinstance(data, dict):
+    if data is None or data == {}:
+        # Snakemake refuses an empty file with a WorkflowError; an empty mapping would override nothing
+        return f"--configfile {path}: is empty (no configuration keys); {expected}"
+    if not isinstance(data, dict):
         return (
             f"--configfile {path}: holds a {type(data).__name__}, not a mapping of configuration keys; "
             f"{expected}"

@@ -787,7 +787,12 @@ def main(argv=None):
     job = dict(
         json.loads(args.job), params=json.loads(args.settings), threads=args.threads, log=args.log
     )
-    run(args.target, job, use_server=os.environ.get(USE_SERVER_VAR, "1") != "0")
+    try:
+        run(args.target, job, use_server=os.environ.get(USE_SERVER_VAR, "1") != "0")
+    except KeyboardInterrupt:
+        # Ctrl-C reaches every job of the terminal's process group: Snakemake reports the interrupted jobs and
+        # bin/study how to resume, so a traceback per running job would only bury that line
+        raise SystemExit(130) from None
 
 
 if __name__ == "__main__":

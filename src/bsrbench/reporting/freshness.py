@@ -91,6 +91,9 @@ def write_provenance(table, data):
 def read_table(table):
     """The published table at ``table`` (every column as read). DataFileError naming it when missing, unreadable or
     without the key columns."""
+    if not Path(table).is_file():
+        what = "is not a file" if Path(table).exists() else "does not exist"
+        raise DataFileError(table, f"{what}; expected a published table of result rows (CSV)")
     try:
         df = pd.read_csv(table)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
@@ -141,14 +144,11 @@ def changed_files(old, new):
 
 def check_table(table, *, digests=None):
     """The staleness check of one published table: ``(lines, stale)``, one line per method ("fresh", "stale: ...")
-    or one line for the whole table (no fingerprints, historical, unreadable). ``digests``: :func:`today`'s map if
+    or one line for the whole table (no fingerprints, historical); DataFileError naming an unreadable table. ``digests``: :func:`today`'s map if
     already computed."""
     name = str(table)
-    try:
-        df = read_table(table)
-        prov = read_provenance(table)
-    except DataFileError as exc:
-        return [f"{name}: {exc}"], True
+    df = read_table(table)  # DataFileError naming the table: bad input, not a stale table
+    prov = read_provenance(table)
     if prov.get("historical"):
         return [f"{name}: historical: {prov['historical']}"], False
     files = configfiles(table, prov)
@@ -511,8 +511,11 @@ def merge(parts, dest):
     df = df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
     if not Path(dest).parent.is_dir():
         raise DataFileError(dest, "cannot write the merged table: its folder does not exist")
-    with atomic_path(dest) as tmp:
-        df.to_csv(tmp, index=False)
+    try:
+        with atomic_path(dest) as tmp:
+            df.to_csv(tmp, index=False)
+    except OSError as exc:
+        raise DataFileError(dest, f"cannot write the merged table ({exc.strerror or exc})") from None
     write_table_provenance(dest, df)
     return df
 
