@@ -235,7 +235,9 @@ def test_check_of_a_missing_or_corrupt_table_is_one_line_and_exit_2(tmp_path, ca
         table.write_bytes(content)
     assert main(["check", str(table)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"error: {table}: ") and err[0].count(str(table)) == 1
+    assert (
+        len(err) == 1 and err[0].startswith(f"error: {table}: ") and err[0].count(str(table)) == 1
+    )
 
 
 def test_merge_into_a_folder_is_one_line_and_exit_2(tmp_path, capsys):

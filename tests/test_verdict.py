@@ -165,4 +165,7 @@ def test_section_latex_without_pm_says_so():
 
     t = {("golf", n): {"A": 5.0 + i, "B": 4.0, "C": 6.0 + i} for i, n in enumerate((30, 60, 100))}
     tex = section_latex(verdict(_rows(t)), labels={})
-    assert "PM was not run in this study: the tables give the mean ranks and Friedman's test only." in tex
+    assert (
+        "PM was not run in this study: the tables give the mean ranks and Friedman's test only."
+        in tex
+    )

@@ -515,7 +515,9 @@ def merge(parts, dest):
         with atomic_path(dest) as tmp:
             df.to_csv(tmp, index=False)
     except OSError as exc:
-        raise DataFileError(dest, f"cannot write the merged table ({exc.strerror or exc})") from None
+        raise DataFileError(
+            dest, f"cannot write the merged table ({exc.strerror or exc})"
+        ) from None
     write_table_provenance(dest, df)
     return df
 

@@ -250,7 +250,9 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
     if v.empty:
         return "\n\n".join(out + ["No complete blocks: nothing to test."])
     if pm not in set(v["method"]):
-        out.append(f"{L(pm)} was not run in this study: the tables give the mean ranks and Friedman's test only.")
+        out.append(
+            f"{L(pm)} was not run in this study: the tables give the mean ranks and Friedman's test only."
+        )
     for protocol, vp in v.groupby("protocol", sort=True):
         for unit in UNITS:
             vu = vp[vp["unit"] == unit]
