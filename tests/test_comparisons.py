@@ -108,6 +108,16 @@ def test_holm_by_hand():
     )
 
 
+def test_holm_equals_statsmodels():
+    from statsmodels.stats.multitest import multipletests
+
+    rng = np.random.default_rng(3)
+    for m in (1, 2, 7, 21):
+        p = rng.uniform(0, 0.2, m)
+        p[: m // 3] = p[0]  # ties
+        assert holm(p) == pytest.approx(multipletests(p, method="holm")[1], rel=1e-12)
+
+
 def test_identical_errors_give_p_one_and_a_zero_interval():
     e = [3.0, 4.0, 5.0, 6.0]
     r = compare_pair(e, e, n_train=30, n_test=570)

@@ -155,7 +155,7 @@ def test_features_rules_end_to_end(tmp_path):
     assert not (work / "results/features/mocap/not_here.npz").exists()
     amc = load_features(work / "results/features/mocap/tiny_amc.npz")
     assert (
-        amc["angle_names"][0] == "root_Xrotation"
+        amc["angle_names"][0] == "root_Zrotation"  # AMC roots in the authors' Z X Y order
         and str(amc["meta"]["paper_activity"]) == "Navigate"
     )
     assert list(amc["meta"]["trial_ids"]) == ["01_01"]

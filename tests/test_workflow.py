@@ -491,6 +491,8 @@ LOCAL_RULES = {
     "plot_pit",
     "aggregate",
     "comparisons",
+    "verdict",
+    "report_verdict",
     "plot_cd",
     "table",
     "table_activities",
@@ -546,6 +548,8 @@ def test_slurm_profile_runs_the_quick_rules_locally(ci_run):
     assert ran_local == {
         "aggregate",
         "comparisons",
+        "verdict",
+        "report_verdict",
         "plot_cd",
         "table",
         "report_text",

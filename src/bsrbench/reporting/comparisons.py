@@ -223,14 +223,17 @@ def compare_pair(a, b, *, n_train, n_test, rope=ROPE):
 
 
 def holm(p):
-    """Holm-adjusted p-values (statsmodels ``multipletests(method="holm")``); NaN entries stay NaN."""
-    from statsmodels.stats.multitest import multipletests
-
+    """Holm-adjusted p-values (Holm 1979, step-down: the i-th smallest of m times ``m - i + 1``, then the running
+    maximum, capped at 1; equal to statsmodels' ``multipletests(method="holm")``, whose Holm branch collects
+    garbage on every call, which made a table's comparisons several times slower); NaN entries stay NaN."""
     p = np.asarray(p, dtype=float)
     out = np.full(p.shape, math.nan)
-    ok = np.isfinite(p)
-    if ok.any():
-        out[ok] = multipletests(p[ok], alpha=ALPHA, method="holm")[1]
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size:
+        order = ok[np.argsort(p[ok], kind="mergesort")]
+        m = order.size
+        scaled = p[order] * (m - np.arange(m))
+        out[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
     return out
 
 

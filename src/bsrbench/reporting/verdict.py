@@ -29,6 +29,7 @@ from scipy import stats
 
 from ..errors import InputError
 from ..io import read_csv
+from .comparisons import holm
 
 #: Units of analysis: the block of the tests, and the columns that name a block.
 UNITS = {"cell": ["source", "activity", "n_train"], "activity": ["source", "activity"]}
@@ -125,17 +126,6 @@ def _wilcoxon(d, alternative):
     return float(stats.wilcoxon(d, alternative=alternative).pvalue)
 
 
-def _holm(p):
-    from statsmodels.stats.multitest import multipletests
-
-    p = np.asarray(p, dtype=float)
-    out = np.full(p.shape, math.nan)
-    ok = np.isfinite(p)
-    if ok.any():
-        out[ok] = multipletests(p[ok], method="holm")[1]
-    return out
-
-
 def against(means, pm="PM"):
     """PM against each other method over the blocks of ``means``: a DataFrame indexed by method with mean_diff
     (mean over blocks of PM - method; positive: PM worse), versus_worse_blocks (blocks where PM's error is higher),
@@ -160,8 +150,8 @@ def against(means, pm="PM"):
             )
         rows[m] = r
     out = pd.DataFrame.from_dict(rows, orient="index")
-    out["p_wilcoxon_holm"] = _holm(out["p_wilcoxon"])
-    out["p_wilcoxon_worse_holm"] = _holm(out["p_wilcoxon_worse"])
+    out["p_wilcoxon_holm"] = holm(out["p_wilcoxon"])
+    out["p_wilcoxon_worse_holm"] = holm(out["p_wilcoxon_worse"])
     return out[cols]
 
 
