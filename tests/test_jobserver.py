@@ -23,13 +23,18 @@ from bsrbench import jobserver
 
 
 @pytest.fixture
-def runtime_base(tmp_path, monkeypatch):
-    """An XDG_RUNTIME_DIR of this test's own (so no test touches the user's real one)."""
-    base = tmp_path / "run"
-    base.mkdir(mode=0o700)
+def runtime_base(monkeypatch):
+    """An XDG_RUNTIME_DIR of this test's own (so no test touches the user's real one), short enough for a Unix
+    socket's path (at most 107 bytes; pytest's tmp_path under pytest-xdist is longer)."""
+    import shutil
+    import tempfile
+
+    base = Path(tempfile.mkdtemp(prefix="bsrjs-", dir="/tmp"))
+    base.chmod(0o700)
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(base))
     monkeypatch.delenv("BSRBENCH_JOBSERVER_SOCKET", raising=False)
-    return base
+    yield base
+    shutil.rmtree(base, ignore_errors=True)
 
 
 @pytest.fixture
