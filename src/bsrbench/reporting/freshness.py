@@ -50,6 +50,16 @@ VERSION_KEYS = ("python", "numpy", "scipy", "scikit-learn", "numba")
 RESTAMP_ROWS = 3
 
 
+def write_table(df, path, what):
+    """Write ``df`` as CSV to ``path`` atomically; DataFileError naming ``path`` and ``what`` it is (e.g. "the
+    merged table") if it cannot be written."""
+    try:
+        with atomic_path(path) as tmp:
+            df.to_csv(tmp, index=False)
+    except OSError as exc:
+        raise DataFileError(path, f"cannot write {what} ({exc.strerror or exc})") from None
+
+
 def provenance_path(table):
     """``<study>.provenance.json`` beside the table ``<study>.csv``."""
     table = Path(table)
@@ -511,13 +521,7 @@ def merge(parts, dest):
     df = df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
     if not Path(dest).parent.is_dir():
         raise DataFileError(dest, "cannot write the merged table: its folder does not exist")
-    try:
-        with atomic_path(dest) as tmp:
-            df.to_csv(tmp, index=False)
-    except OSError as exc:
-        raise DataFileError(
-            dest, f"cannot write the merged table ({exc.strerror or exc})"
-        ) from None
+    write_table(df, dest, "the merged table")
     write_table_provenance(dest, df)
     return df
 

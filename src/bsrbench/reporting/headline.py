@@ -17,7 +17,7 @@ from ..io import atomic_path
 from ..paper import PAPER_METHODS
 from . import comparisons as cmp
 from .tables import paper_names
-from .verdict import UNITS
+from .verdict import UNITS, p_text
 
 #: The README's blocks generated here, by marker name.
 MARKERS = ("verdict", "findings", "notes")
@@ -26,13 +26,6 @@ UNIT_WORDS = {
     "activity": "(source, activity) motions",
 }
 UNIT_PLURAL = {"cell": "cells", "activity": "motions"}
-
-
-def p_text(p):
-    """A p-value as the README prints it: 3 decimals from 0.001, else one significant digit (``8e-08``)."""
-    if p is None or not np.isfinite(p):
-        return "no test"
-    return f"{p:.3f}" if p >= 0.001 else f"{p:.0e}"
 
 
 def _label(labels, m):
@@ -246,10 +239,11 @@ def notes_markdown(df, *, labels, protocol="random", share=0.5):
     return "\n".join(out) if out else "- No mean NLPD is dominated by one split."
 
 
-def update_blocks(path, blocks):
+def update_blocks(path, blocks, required=None):
     """Replace the text between ``<!-- name -->`` and ``<!-- /name -->`` for each ``name: text`` of ``blocks``
     present in ``path``; returns the names written. DataFileError naming ``path`` if it cannot be read or
-    written (the file is then unchanged)."""
+    written, or if it lacks the markers of a name in ``required`` (``{name: what the block is}``); the file is
+    then unchanged."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -261,6 +255,10 @@ def update_blocks(path, blocks):
         if pat.search(text):
             text = pat.sub(lambda m, b=block: m.group(1) + b + m.group(2), text)
             written.append(name)
+        elif name in (required or {}):
+            raise DataFileError(
+                path, f"no markers '<!-- {name} -->' ... '<!-- /{name} -->' for {required[name]}"
+            )
     try:
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")

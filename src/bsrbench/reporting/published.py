@@ -117,13 +117,7 @@ def publish(src, dest, study=None):
     check_study(src, dest, study)
     df = read_results(src)
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
-    try:
-        with atomic_path(dest) as tmp:
-            df.to_csv(tmp, index=False)
-    except OSError as exc:
-        raise DataFileError(
-            dest, f"cannot write the published table ({exc.strerror or exc})"
-        ) from exc
+    freshness.write_table(df, dest, "the published table")
     # the provenance beside it: per method the fingerprint and digests the staleness check compares
     freshness.write_table_provenance(dest, df)
     return df
@@ -149,12 +143,8 @@ def publish_comparisons(src, dest):
     out = cmp.published(cmp.comparisons(df))
     verdict_dest = Path(dest).with_name(Path(src).stem + "-verdict.csv")
     verdict_table = verdict(df)
-    for path, table, what in ((dest, out, "comparisons"), (verdict_dest, verdict_table, "verdict")):
-        try:
-            with atomic_path(path) as tmp:
-                table.to_csv(tmp, index=False)
-        except OSError as exc:
-            raise DataFileError(path, f"cannot write the {what} ({exc.strerror or exc})") from exc
+    freshness.write_table(out, dest, "the comparisons")
+    freshness.write_table(verdict_table, verdict_dest, "the verdict")
     return out
 
 
@@ -382,21 +372,9 @@ def update_mechanisms(path, paragraph):
     """Replace the text between :data:`MECHANISMS_MARKERS` of ``path`` with ``paragraph`` (markdown,
     :func:`.mechanisms.readme_paragraph`). DataFileError naming ``path`` if it cannot be read or written or lacks
     the markers (the file is then unchanged)."""
-    path = Path(path)
-    start, end = MECHANISMS_MARKERS
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataFileError(path, f"cannot read the file to update ({exc})") from exc
-    pat = re.compile(rf"({re.escape(start)}\n).*?(\n{re.escape(end)})", re.S)
-    if not pat.search(text):
-        raise DataFileError(path, f"no markers '{start}' ... '{end}' for the mechanisms paragraph")
-    text = pat.sub(lambda m: m.group(1) + paragraph + m.group(2), text)
-    try:
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+    headline.update_blocks(
+        path, {"mechanisms": paragraph}, required={"mechanisms": "the mechanisms paragraph"}
+    )
 
 
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).

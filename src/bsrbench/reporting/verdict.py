@@ -198,6 +198,14 @@ def verdict(df, *, pm="PM", alpha=ALPHA):
     return out
 
 
+def p_text(p):
+    """A p-value as the README and the report print it: 3 decimals from 0.001, else one significant digit
+    (``8e-08``); "no test" for a missing one."""
+    if p is None or not np.isfinite(p):
+        return "no test"
+    return f"{p:.3f}" if p >= 0.001 else f"{p:.0e}"
+
+
 def read_verdict(path):
     """Read a verdict table; DataFileError naming the file if it cannot be read or lacks a column."""
     from ..errors import DataFileError
@@ -222,8 +230,7 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
     def p(x):
         if x is None or not np.isfinite(x):
             return "--"
-        s = f"{x:.3f}" if x >= 0.001 else f"{x:.0e}"
-        return rf"\textbf{{{s}}}" if x < alpha else s
+        return rf"\textbf{{{p_text(x)}}}" if x < alpha else p_text(x)
 
     out = [
         r"\section{The verdict across cells and motions}",
