@@ -213,3 +213,23 @@ def test_configfile_args_reads_snakemakes_forms():
     ]
     assert configfile_args(argv) == ["a.yaml", "b.yaml", "c.yaml"]
     assert configfile_args(["--config", "study=x", "all"]) == []
+
+
+@pytest.mark.parametrize("entry", ["foo", "=1", "study"])
+def test_study_names_a_config_entry_that_is_not_key_value(entry):
+    rc, out = run([str(ROOT / "bin" / "study"), "-n", "--config", "n_seeds=1", entry], ROOT)
+    assert rc == 2
+    assert_one_line(
+        out,
+        f"[study] --config {entry!r}: expected KEY=VALUE, for example --config study=mine "
+        "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)",
+    )
+
+
+def test_argv_problems_reads_config_entries_in_snakemakes_forms():
+    from bsrbench.config import argv_problems
+
+    assert argv_problems(["--config", "study=x", "n_seeds=2", "-n", "all"]) == []
+    assert argv_problems(["-C", "a=1", "--config=b=2"]) == []
+    bad = argv_problems(["--config", "study=x", "oops", "--cores", "2", "target"])
+    assert len(bad) == 1 and bad[0].startswith("--config 'oops': expected KEY=VALUE")

@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import math
 import shutil
 import subprocess
 from pathlib import Path
@@ -152,6 +153,18 @@ def test_verify_reruns_rows_equal_and_finds_a_changed_one(study, capsys):
     assert len(out) == 5 and all("DIFFERENT: error (|diff|" in line for line in out)
 
 
+@pytest.mark.parametrize("command", ["verify", "restamp"])
+def test_verify_and_restamp_refuse_rows_of_a_method_the_study_does_not_run(study, capsys, command):
+    df = pd.read_csv(study)
+    df.loc[0, "method"] = "Nobody"
+    df.to_csv(study, index=False)
+    assert main([command, str(study)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert f"{study}: methods ['Nobody'] are not run by config/ci.yaml" in err
+    assert "such rows cannot be rerun" in err
+
+
 def test_restamp_stamps_only_the_methods_whose_rows_rerun_equal(study, capsys):
     feats = study.parent.parent / "features"
     df = pd.read_csv(study)
@@ -251,3 +264,17 @@ def test_merge_into_a_folder_is_one_line_and_exit_2(tmp_path, capsys):
     assert main(["merge", str(part), str(tmp_path / "dest.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot write the merged table" in err[0]
+
+
+def test_cell_shifts_are_changes_of_the_mean_in_standard_errors_of_the_old_mean():
+    key = dict(protocol="random", source="hsc", activity="golf", method="NN1", n_train=30)
+    old = pd.DataFrame([dict(key, seed=s, error=e) for s, e in enumerate([1.0, 2.0, 3.0, 6.0])])
+    new = old.assign(error=[2.0, 3.0, 4.0, 7.0])  # every seed one degree worse
+    other = dict(key, method="Ridge")
+    old = pd.concat([old, pd.DataFrame([dict(other, seed=0, error=5.0)])])  # only in the old table
+    out = freshness.cell_shifts(old, new)
+    assert len(out) == 1
+    # by hand: old mean 3, sample std sqrt(((-2)^2 + (-1)^2 + 0 + 3^2) / 3) = sqrt(14/3), SE = that / 2
+    se = math.sqrt(14 / 3) / 2
+    assert out["se_old"].iloc[0] == pytest.approx(se)
+    assert out["z"].iloc[0] == pytest.approx(1.0 / se)

@@ -34,22 +34,46 @@ MOTION_FORMATS = ("bvh", "amc")
 # ------------------------------------------------------------------------------------------- command line
 
 
-def configfile_args(argv):
-    """The files a snakemake argument list ``argv`` names with ``--configfile``/``--configfiles`` (each takes
-    the following arguments up to the next option, as Snakemake's parser does) or ``--configfile=FILE``."""
-    files, taking = [], False
+def option_args(argv, names):
+    """The values a snakemake argument list ``argv`` gives the options ``names`` (each takes the following
+    arguments up to the next option, as Snakemake's parser does, or ``--name=VALUE``)."""
+    values, taking = [], False
     for arg in argv:
         arg = str(arg)
         name, eq, value = arg.partition("=")
-        if name in ("--configfile", "--configfiles"):
+        if name in names:
             taking = not eq
             if eq:
-                files.append(value)
+                values.append(value)
         elif arg.startswith("-"):
             taking = False
         elif taking:
-            files.append(arg)
-    return files
+            values.append(arg)
+    return values
+
+
+def configfile_args(argv):
+    """The files ``argv`` names with ``--configfile``/``--configfiles``."""
+    return option_args(argv, ("--configfile", "--configfiles"))
+
+
+def config_arg_problem(entry):
+    """What is wrong with one ``--config`` entry, one line (None if it is ``KEY=VALUE``). Snakemake answers
+    anything else with a traceback before the Snakefile runs, so ``bin/study`` asks this first."""
+    key, eq, _ = entry.partition("=")
+    if not eq or not key.strip():
+        return (
+            f"--config {entry!r}: expected KEY=VALUE, for example --config study=mine "
+            "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)"
+        )
+    return None
+
+
+def argv_problems(argv):
+    """The problems of the ``--configfile`` files and ``--config`` entries of a snakemake argument list."""
+    bad = [configfile_problem(f) for f in configfile_args(argv)]
+    bad += [config_arg_problem(e) for e in option_args(argv, ("--config", "-C"))]
+    return [m for m in bad if m]
 
 
 def configfile_problem(path):

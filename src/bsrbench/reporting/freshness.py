@@ -370,10 +370,23 @@ def sample_rows(df, k, seed, methods=None):
     return df.iloc[sorted(idx)]
 
 
+def _known_methods(table, df, registry, files):
+    """Refuse a table with rows of a method that its study's configuration does not run: such a row cannot be
+    rerun (its estimator and settings are not configured)."""
+    unknown = sorted(set(df["method"]) - set(registry))
+    if unknown:
+        raise InputError(
+            f"{table}: methods {unknown} are not run by {' + '.join(files)} "
+            f"(it runs {', '.join(registry)}); such rows cannot be rerun"
+        )
+
+
 def verify(table, k, seed=0, *, log=print, features_folder="results/features"):
     """Rerun ``k`` random rows of ``table`` with today's code and print one verdict per row; True if all equal."""
     df = read_table(table)
-    config = study_config(configfiles(table))
+    files = configfiles(table)
+    config = study_config(files)
+    _known_methods(table, df, study_registry(config, " + ".join(files)), files)
     ok = True
     for _, row in sample_rows(df, k, seed).iterrows():
         row = row.to_dict()
@@ -393,9 +406,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="result
     files = configfiles(table, prov)
     config = study_config(files)
     registry = study_registry(config, " + ".join(files))
-    unknown = sorted(set(df["method"]) - set(registry))
-    if unknown:
-        raise InputError(f"{table}: methods {unknown} are not run by {' + '.join(files)}")
+    _known_methods(table, df, registry, files)
     now = today(registry)
     prov.setdefault("study", study_name(table))
     prov.setdefault("configfiles", files)
@@ -526,8 +537,49 @@ def merge(parts, dest):
     return df
 
 
+def cell_shifts(old, new, column="error"):
+    """How far each cell's mean of ``column`` moved from table ``old`` to table ``new`` (a regeneration), in units
+    of the standard error of the old cell's mean (std over its seeds / sqrt(seeds)): one row per cell (the key
+    columns but the seed) that both tables hold, largest |z| first."""
+    cells = [c for c in KEY_COLUMNS if c != "seed"]
+    for name, df in (("old", old), ("new", new)):
+        missing = sorted(set(cells + [column]) - set(df.columns))
+        if missing:
+            raise InputError(f"the {name} table has no columns {missing}")
+    a = old.groupby(cells)[column].agg(["mean", "std", "count"])
+    b = new.groupby(cells)[column].agg(["mean", "count"])
+    out = a.add_suffix("_old").join(b.add_suffix("_new"), how="inner")
+    out["se_old"] = out["std_old"] / np.sqrt(out["count_old"])
+    out["z"] = (out["mean_new"] - out["mean_old"]) / out["se_old"]
+    out = out.drop(columns="std_old").reset_index()
+    return out.reindex(out["z"].abs().sort_values(ascending=False, na_position="last").index)
+
+
+def shift_report(old_table, new_table, column="error", top=5):
+    """Lines: the cells compared, the largest shift in standard errors and the ``top`` cells that moved most."""
+    old, new = read_table(old_table), read_table(new_table)
+    out = cell_shifts(old, new, column)
+    cells = [c for c in KEY_COLUMNS if c != "seed"]
+    n_old, n_new = (len(df.groupby(cells)) for df in (old, new))
+    lines = [
+        f"{new_table} against {old_table}: {len(out)} cells in both ({n_old} in the old table, {n_new} in the "
+        f"new); column {column}, change of the cell's mean in standard errors of the old cell's mean"
+    ]
+    if len(out):
+        z = out["z"].abs()
+        lines.append(
+            f"largest |z| {z.max():.2f}; median |z| {z.median():.2f}; cells with |z| > 2: {(z > 2).sum()}"
+        )
+    for _, r in out.head(top).iterrows():
+        cell = " ".join(f"{c}={r[c]}" for c in cells)
+        lines.append(
+            f"  {cell}: {r['mean_old']:.4g} -> {r['mean_new']:.4g} (SE {r['se_old']:.3g}, z {r['z']:+.2f})"
+        )
+    return lines
+
+
 # ------------------------------------------------------------------------------------------ command line
-COMMANDS = ("check", "verify", "restamp", "merge")
+COMMANDS = ("check", "verify", "restamp", "merge", "shift")
 
 
 def add_commands(sub):
@@ -552,6 +604,14 @@ def add_commands(sub):
     r.add_argument("table")
     r.add_argument("--rows", type=int, default=RESTAMP_ROWS, help="rows per method (at least 3)")
     r.add_argument("--seed", type=int, default=0)
+    s = sub.add_parser(
+        "shift",
+        help="how far each cell's mean moved between two versions of a table, in standard errors",
+    )
+    s.add_argument("old", help="the table before (e.g. git show HEAD:reports/published/X.csv > old.csv)")
+    s.add_argument("new", help="the regenerated table")
+    s.add_argument("--column", default="error", help="the column compared (default error)")
+    s.add_argument("--top", type=int, default=5, help="cells listed (default 5)")
     m = sub.add_parser(
         "merge", help="merge the published tables of a study's parts (newest row per job key)"
     )
@@ -586,6 +646,9 @@ def run_command(args):
                     f"{args.table}: every method has today's code fingerprint; nothing to restamp"
                 )
             return 0 if all(ok for ok, _ in out.values()) else 1
+        if args.cmd == "shift":
+            print("\n".join(shift_report(args.old, args.new, args.column, args.top)))
+            return 0
         df = merge(args.parts, args.dest)
         print(f"{args.dest}: {len(df)} rows from {len(args.parts)} part(s)", file=sys.stderr)
         return 0
