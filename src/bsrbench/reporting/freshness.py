@@ -608,7 +608,9 @@ def add_commands(sub):
         "shift",
         help="how far each cell's mean moved between two versions of a table, in standard errors",
     )
-    s.add_argument("old", help="the table before (e.g. git show HEAD:reports/published/X.csv > old.csv)")
+    s.add_argument(
+        "old", help="the table before (e.g. git show HEAD:reports/published/X.csv > old.csv)"
+    )
     s.add_argument("new", help="the regenerated table")
     s.add_argument("--column", default="error", help="the column compared (default error)")
     s.add_argument("--top", type=int, default=5, help="cells listed (default 5)")
