@@ -237,3 +237,34 @@ def test_published_comparisons_are_the_paper_table_s_and_have_exactly_the_column
     # the destination is named after the table
     assert main(["comparisons", str(PUBLISHED), str(tmp_path / "other.csv")]) == 2
     assert "go to 'paper-comparisons.csv'" in capsys.readouterr().err
+
+
+def test_a_part_published_with_its_studys_configfiles_is_checked_against_them(
+    tmp_path, capsys, monkeypatch
+):
+    """A part of a study run with --config study=<part> (e.g. ablation-golf) has no config/<part>.yaml: publish
+    records the study's files given by --configfiles, and the check reads the part under parts/."""
+    import json
+
+    from bsrbench.reporting import freshness
+    from bsrbench.reporting.published import main
+
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    src = tmp_path / "results" / "paper-hsc" / "aggregate" / "results.csv"
+    src.parent.mkdir(parents=True)
+    df = pd.read_csv(PUBLISHED)
+    df[df["source"] == "hsc"].to_csv(src, index=False)
+    dest = tmp_path / "published" / "parts" / "paper-hsc.csv"
+    dest.parent.mkdir(parents=True)
+    missing = tmp_path / "nope.yaml"
+    assert main(["publish", str(src), str(dest), "--configfiles", str(missing)]) == 2
+    assert f"--configfiles {missing}: no such file" in capsys.readouterr().err
+    assert not dest.exists()
+    assert main(["publish", str(src), str(dest), "--configfiles", "config/paper.yaml"]) == 0
+    prov = json.loads(freshness.provenance_path(dest).read_text())
+    assert prov["study"] == "paper-hsc" and prov["configfiles"] == ["config/paper.yaml"]
+    assert freshness.published_tables(tmp_path / "published") == [dest]
+    lines, _ = freshness.check_table(dest)
+    methods = sorted(df.loc[df["source"] == "hsc", "method"].unique())
+    assert sorted(line.split()[1].rstrip(":") for line in lines) == methods
+    assert not any("unknown method" in line for line in lines)

@@ -207,8 +207,10 @@ def check_table(table, *, digests=None):
 
 
 def published_tables(folder="reports/published"):
-    """The published tables of result rows in ``folder`` (the derived tables left out), sorted."""
-    return sorted(p for p in Path(folder).glob("*.csv") if not is_derived(p))
+    """The published tables of result rows in ``folder`` and its ``parts/`` (parts of a study regenerated one at a
+    time, before they are merged; the derived tables left out), sorted."""
+    tables = [*Path(folder).glob("*.csv"), *Path(folder).glob("parts/*.csv")]
+    return sorted(p for p in tables if not is_derived(p))
 
 
 # ------------------------------------------------------------------------------------------- rerunning rows

@@ -98,14 +98,15 @@ def check_study(src, dest, study=None):
     return study
 
 
-def publish(src, dest, study=None):
+def publish(src, dest, study=None, configfiles=None):
     """Copy the aggregate table ``src`` to ``dest`` with every convergence column; check it first
     (:func:`.tables.read_results`: one row per job, valid values, every cell with all its seeds).
 
     ``dest``'s folder must exist (a mistyped destination is an error, not a new folder): DataFileError naming
     ``dest`` otherwise, before anything is read or written. ``dest`` must be named after the study of ``src``
     (:func:`check_study`; ``study`` for a source outside ``results/``): InputError otherwise, before anything is
-    read or written."""
+    read or written. ``configfiles``: the study's configuration files, recorded in the provenance (default:
+    ``config/<study>.yaml``; a part of a study run with ``--config study=...`` names its study's files)."""
     parent = Path(dest).parent
     if not parent.is_dir():
         what = "is not a folder" if parent.exists() else "does not exist"
@@ -119,7 +120,7 @@ def publish(src, dest, study=None):
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
     freshness.write_table(df, dest, "the published table")
     # the provenance beside it: per method the fingerprint and digests the staleness check compares
-    freshness.write_table_provenance(dest, df)
+    freshness.write_table_provenance(dest, df, configfiles)
     return df
 
 
@@ -396,6 +397,13 @@ def main(argv=None):
         help="the study of a src outside results/ (default: <study> of "
         "results/<study>/aggregate/results.csv)",
     )
+    p.add_argument(
+        "--configfiles",
+        nargs="+",
+        metavar="FILE",
+        help="the study's configuration files, as given to snakemake --configfile (default: "
+        "config/<study>.yaml); a part run with --config study=<part> names its study's files",
+    )
     c = sub.add_parser(
         "comparisons",
         help="the paired comparisons of a published table (reports/published/<study>-comparisons.csv)",
@@ -447,7 +455,13 @@ def main(argv=None):
                 print(paragraph)
             return 0
         if args.cmd == "publish":
-            df = publish(args.src, args.dest, study=args.study)
+            if args.configfiles:
+                for f in args.configfiles:
+                    if not Path(f).is_file():
+                        raise InputError(
+                            f"--configfiles {f}: no such file; expected a study's YAML file"
+                        )
+            df = publish(args.src, args.dest, study=args.study, configfiles=args.configfiles)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
             return 0
         if args.cmd == "comparisons":
