@@ -186,12 +186,12 @@ def gxy_inputs(wildcards):
 
 
 def config_overrides():
-    """This run's `--config KEY=VALUE` strings that configure the study (all but job_server, which reruns
-    nothing, like --cores)."""
+    """This run's `--config KEY=VALUE` strings that configure the study (all but job_server and seeds_per_job,
+    which change where and in which jobs the fits run, not their results, like --cores)."""
     return [
         str(a)
         for a in workflow.config_settings.config_args or []
-        if str(a).partition("=")[0].strip() != "job_server"
+        if str(a).partition("=")[0].strip() not in ("job_server", "seeds_per_job")
     ]
 
 
