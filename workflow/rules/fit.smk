@@ -65,6 +65,8 @@ def block_cv_inputs(seeds):
 
 
 SPLIT = "{protocol}/{source}/{activity}/{method}/n{n_train}"
+# {seeds: methods} of the cv jobs; a rule cv (of no method) even in a study without CV, as in every other study.
+CV_BLOCKS = STUDY.cv_blocks() or {(STUDY.first_seed,): []}
 PER_SEED = config.get("seeds_per_job") == 1
 
 
@@ -122,11 +124,11 @@ if PER_SEED:
 else:
     # One rule per block of seeds (a rule's outputs are fixed by its wildcards), named cv/fit when a cell has
     # one block.
-    for seeds, methods in STUDY.cv_blocks().items():
+    for seeds, methods in CV_BLOCKS.items():
 
         rule:
             name:
-                "cv" if len(STUDY.cv_blocks()) == 1 else f"cv_{block_name(seeds)}"
+                "cv" if len(CV_BLOCKS) == 1 else f"cv_{block_name(seeds)}"
             input:
                 features="results/features/{source}/{activity}.npz",
                 code=estimator_sources,
@@ -137,7 +139,7 @@ else:
             benchmark:
                 f"{RESULTS}/benchmarks/cv/{SPLIT}/{block_name(seeds)}.tsv"
             wildcard_constraints:
-                method="|".join(methods),
+                method="|".join(methods) or "(?!x)x",
             conda:
                 "../envs/bsrbench.yaml"
             threads: 1
