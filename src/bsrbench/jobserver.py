@@ -1,6 +1,7 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
-Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a fresh
+The study's fits run in thousands of short jobs (one per seed, or one per block of seeds that runs the job of each
+seed in turn, :func:`run_block`), and most fits compute for well under a second, while a fresh
 interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
 (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
@@ -337,6 +338,8 @@ def run_block(target, specs, *, params, threads, log, use_server=True):
     """Run the jobs of a block of seeds (:func:`block_job_params`) one after the other, each as :func:`run` runs the
     job of one seed, all logging to the block's ``log`` (emptied first). Stops at the first seed that fails, with
     a message naming it (SystemExit); Snakemake then removes the outputs of the whole block, and reruns it whole."""
+    import traceback
+
     if log:
         open(log[0], "w").close()
     seeds = [spec["wildcards"]["seed"] for spec in specs]
@@ -346,13 +349,24 @@ def run_block(target, specs, *, params, threads, log, use_server=True):
         if log:
             with open(log[0], "a") as f:
                 print(f"--- seed {seed} ---", file=f)
+        stderr = sys.stderr
         try:
             run(target, job, use_server=use_server)
         except (Exception, SystemExit) as exc:
+            if not isinstance(
+                exc, SystemExit
+            ):  # raised in this process: its traceback into the log
+                traceback.print_exc()
+                exc = f"{type(exc).__name__}: {exc}"
             where = f"; see {log[0]}" if log else ""
             raise SystemExit(
                 f"{target}: seed {seed} of the block of seeds {seeds[0]}-{seeds[-1]} failed{where}:\n{exc}"
             ) from None
+        finally:
+            # run in this process, the job's stderr was its log: the block's message goes to the command's
+            if sys.stderr is not stderr:
+                sys.stderr.close()
+                sys.stderr = stderr
 
 
 def _connect(path):
