@@ -52,7 +52,9 @@ def env(**extra):
 
 # A `sitecustomize` module (Python imports it at start-up from PYTHONPATH, which sbatch passes on to the jobs):
 # the fit job that runs GATED_JOB waits until the file GATE exists, so that a test decides when it may finish.
-GATED_JOB = ("NN1", "1")  # method, seed
+# Ridge's fit job is submitted last (after Ridge's CV), so that the two other jobs (the CV, 1-NN's fit job) can
+# finish first on a node of one core.
+GATED_JOB = ("Ridge", "1")  # method, seed
 GATE_MODULE = """
 import json, os, sys, time
 if "bsrbench.jobs:fit" in sys.argv:
@@ -290,6 +292,7 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
                 if "SLURM run ID" in log.read_text() and len(cluster_jobs(work, outputs)) >= 2:
                     break
             assert proc.poll() is None, log.read_text()[-3000:]
+            assert len(cluster_jobs(work, outputs)) >= 2, log.read_text()[-3000:]
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=30)
         finally:
