@@ -1,5 +1,3 @@
-from types import SimpleNamespace
-
 # Fit jobs: one per (protocol, source, activity, method, n_train) and block of seeds (config key seeds_per_job), one
 # per seed with seeds_per_job 1; CV jobs choose hyper-parameters. The files stay one per seed either way.
 # Jobs run in bsrbench.jobs, through the job server; a block's seeds one after the other (bsrbench.jobserver).
@@ -37,31 +35,6 @@ CHAIN_PARAMS = dict(
     min_test=config["min_test"],
     gap=config["gap"],
 )
-
-
-def seed_files(pattern, seeds):
-    """``pattern``'s files of ``seeds`` (one per seed, in order), its other wildcards kept."""
-    return expand(pattern, seed=seeds, allow_missing=True)
-
-
-def block_name(seeds):
-    """The block's name in its rule, log and benchmark: seed3 (one seed) or seeds0to9."""
-    return f"seed{seeds[0]}" if len(seeds) == 1 else f"seeds{seeds[0]}to{seeds[-1]}"
-
-
-def with_seed(wildcards, seed):
-    """A block job's wildcards with the wildcard ``seed`` of one of its seeds."""
-    return SimpleNamespace(**dict(wildcards.items()), seed=str(seed))
-
-
-def block_cv_inputs(seeds):
-    """The CV results a block's fits read (each once)."""
-
-    def inputs(wildcards):
-        files = (cv_input(with_seed(wildcards, s)) for s in seeds)
-        return sorted({f for f in files if f})
-
-    return inputs
 
 
 SPLIT = "{protocol}/{source}/{activity}/{method}/n{n_train}"
