@@ -59,7 +59,8 @@ def test_one_job_per_seed_and_the_default_blocks_give_the_same_rows_and_tables(t
 
     outputs = {}
     for k in ("1", "null"):
-        work = copy_tree(tmp_path / f"seeds_per_job_{k}")
+        (tmp_path / k).mkdir()
+        work = copy_tree(tmp_path / k)
         res = smk("reports/ci/report.pdf", "--cores", "2", "--configfile", "config/ci.yaml",
                   "--config", f"seeds_per_job={k}", cwd=work, timeout=900)  # fmt: skip
         assert res.returncode == 0, (res.stdout + res.stderr)[-4000:]
