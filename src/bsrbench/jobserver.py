@@ -353,9 +353,8 @@ def run_block(target, specs, *, params, threads, log, use_server=True):
         try:
             run(target, job, use_server=use_server)
         except (Exception, SystemExit) as exc:
-            if not isinstance(
-                exc, SystemExit
-            ):  # raised in this process: its traceback into the log
+            # raised in this process (run_local): its traceback into the log
+            if not isinstance(exc, SystemExit):
                 traceback.print_exc()
                 exc = f"{type(exc).__name__}: {exc}"
             where = f"; see {log[0]}" if log else ""
