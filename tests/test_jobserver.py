@@ -784,3 +784,5 @@ def test_a_block_job_runs_the_job_of_each_seed_in_turn_and_names_a_failing_seed(
         assert len(pids) == (2 if use == "1" else 1)
         (tmp_path / "missing" / "out4.txt").unlink()
         (tmp_path / "missing").rmdir()
+    # the commands' server (one per working directory: tmp_path's, not the fixture's)
+    assert jobserver.shutdown(jobserver.socket_path(cwd=tmp_path))
