@@ -39,18 +39,35 @@ def job_seconds(tsv):
     return float(rows[-1]["s"])
 
 
+#: The benchmark file of a job that runs a block of seeds (config key seeds_per_job), e.g. seeds0to9.tsv.
+BLOCK = re.compile(r"^seeds(\d+)to(\d+)$")
+
+
+def seed_stems(stem):
+    """The result files (without suffix) of the seeds of a job's benchmark file stem: ``seed3`` -> [seed3], a
+    block's ``seeds0to9`` -> [seed0, ..., seed9]."""
+    m = BLOCK.match(stem.name)
+    if not m:
+        return [stem]
+    return [stem.with_name(f"seed{s}") for s in range(int(m[1]), int(m[2]) + 1)]
+
+
 def model_seconds(results, rel):
-    """Seconds spent in the estimator by the job whose benchmark file is ``rel`` (relative to benchmarks/)."""
+    """Seconds spent in the estimator by the job whose benchmark file is ``rel`` (relative to benchmarks/), summed
+    over the seeds of a block job."""
     kind = rel.parts[0]
     stem = results / kind / rel.with_suffix("").relative_to(kind)
     if kind == "cv":
-        return float(json.loads(stem.with_suffix(".json").read_text())["cv_seconds"])
+        return sum(
+            float(json.loads(s.with_suffix(".json").read_text())["cv_seconds"])
+            for s in seed_stems(stem)
+        )
     if stem.name.startswith("chain"):
         with np.load(stem.with_suffix(".npz"), allow_pickle=False) as z:
             row = json.loads(str(z["row"])) if "row" in z.files else {}
         return float(row.get("fit_seconds", np.nan)) + float(row.get("predict_seconds", np.nan))
-    row = json.loads(stem.with_suffix(".json").read_text())
-    return float(row["fit_seconds"]) + float(row["predict_seconds"])
+    rows = [json.loads(s.with_suffix(".json").read_text()) for s in seed_stems(stem)]
+    return sum(float(row["fit_seconds"]) + float(row["predict_seconds"]) for row in rows)
 
 
 def kind_of(rel):

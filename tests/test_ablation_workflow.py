@@ -26,10 +26,11 @@ def test_ablation_dry_run_counts_one_job_per_chain(tmp_path):
     assert res.returncode == 0, out[-3000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
     variants = 23  # PM variants in config/ablation.yaml
-    splits = 4 * 3 * 5  # hsc activities x N x seeds
+    cells = 4 * 3  # hsc activities x N
+    splits = cells * 5  # x seeds
     assert int(counts["fit_chain"]) == variants * 4 * splits
     assert int(counts["pool_chains"]) == variants * splits
-    assert int(counts["fit"]) == 3 * splits  # 1-NN, TGP, SR
+    assert int(counts["fit"]) == 3 * cells  # 1-NN, TGP, SR: one job of the 5 seeds per cell
     assert (
         "seed100" in out and "seed0." not in out
     )  # splits disjoint from the paper protocol's seeds 0-9
@@ -50,9 +51,10 @@ def test_goal_overlay_runs_the_chosen_variants_on_the_paper_protocols_splits(tmp
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
-    splits = 4 * 4 * 10  # hsc activities x N x seeds
+    cells = 4 * 4  # hsc activities x N
+    splits = cells * 10  # x seeds
     assert int(counts["fit_chain"]) == 2 * 4 * splits and int(counts["pool_chains"]) == 2 * splits
-    assert int(counts["fit"]) == splits  # 1-NN
+    assert int(counts["fit"]) == cells  # 1-NN: one job of the 10 seeds per cell
     assert "results/paper-goal/fit/random/hsc/" in out and "seed9" in out and "seed100" not in out
 
 

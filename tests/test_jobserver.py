@@ -729,3 +729,60 @@ def test_an_unsafe_directory_is_refused_with_what_was_found_and_expected(
     err = capsys.readouterr().err
     assert f"bsrbench.jobserver: {message}; running in-process" in err.splitlines(), err
     assert list(path.parent.glob("**/*.sock")) == []  # nothing was put in the unsafe place
+
+
+def test_a_block_job_runs_the_job_of_each_seed_in_turn_and_names_a_failing_seed(
+    server_socket, tmp_path
+):
+    """The JSON of block_job_params holds each seed's job spec (its wildcards, its files of the block's output
+    lists, its per-seed inputs); the command runs them one after the other into the block's log, through the
+    server (a fork per seed) or in its own process; a failing seed stops the block with its name."""
+
+    class Wildcards(dict):
+        def __getattr__(self, key):
+            return self[key]
+
+    outs = [str(tmp_path / "out3.txt"), str(tmp_path / "missing" / "out4.txt")]
+    params = jobserver.block_job_params([3, 4], {"cv": lambda w: f"cv{w.seed}.json"})
+    job = json.loads(params(Wildcards(method="PM"), {"code": ["a.py"], "cv": []}, {"path": outs}))
+    assert job["block"] == [
+        {
+            "input": {"code": ["a.py"], "cv": f"cv{s}.json"},
+            "output": {"path": out},
+            "wildcards": {"method": "PM", "seed": str(s)},
+        }
+        for s, out in zip((3, 4), outs)
+    ]
+
+    def command(use, log):
+        return subprocess.run(
+            [sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:ping",
+             "--threads", "1", "--log", str(log), json.dumps(job), "--settings", "{}"],
+            env=dict(os.environ, **{jobserver.USE_SERVER_VAR: use}), cwd=tmp_path,
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+
+    for use in ("1", "0"):
+        (tmp_path / "out3.txt").unlink(missing_ok=True)
+        log = tmp_path / f"block{use}.log"
+        # seed 4's output folder is missing: seed 3 runs, seed 4 fails
+        bad = command(use, log)
+        assert bad.returncode != 0
+        assert "bsrbench.jobserver:ping: seed 4 of the block of seeds 3-4 failed" in bad.stderr
+        assert "FileNotFoundError" in bad.stderr + log.read_text()
+        assert (tmp_path / "out3.txt").exists()
+        (tmp_path / "missing").mkdir(exist_ok=True)
+        res = command(use, log)
+        assert res.returncode == 0, res.stderr
+        pids = {int(Path(p).read_text()) for p in outs}
+        text = log.read_text()
+        assert text.index("--- seed 3 ---") < text.index("--- seed 4 ---")
+        assert (
+            text.count("ping from pid") == 2 and "FileNotFoundError" not in text
+        )  # the log emptied
+        # through the server one fork per seed; switched off, both in the command's own process
+        assert len(pids) == (2 if use == "1" else 1)
+        (tmp_path / "missing" / "out4.txt").unlink()
+        (tmp_path / "missing").rmdir()
+    # the commands' server (one per working directory: tmp_path's, not the fixture's)
+    assert jobserver.shutdown(jobserver.socket_path(cwd=tmp_path))

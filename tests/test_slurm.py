@@ -3,7 +3,9 @@
 Marker ``slurm`` (CI: `bin/test -m slurm`, as root; the cluster's packages are installed on first use). Each test
 starts its own cluster and stops it. The study is config/ci.yaml with two of its methods (Ridge, which has a CV job,
 and 1-NN), so that a run takes about a minute. What ran where comes from SLURM's own records (``squeue
---states=all`` without accounting, ``sacct`` with it): every job's comment names its rule and wildcards.
+--states=all`` without accounting, ``sacct`` with it): every job's comment names its rule and wildcards. A fit job
+runs the seeds of its (protocol, source, activity, method, n_train) (config key seeds_per_job, default all), so its
+wildcards name no seed.
 """
 
 import base64
@@ -49,13 +51,16 @@ def env(**extra):
 
 
 # A `sitecustomize` module (Python imports it at start-up from PYTHONPATH, which sbatch passes on to the jobs):
-# the fit job of GATED_JOB waits until the file GATE exists, so that a test decides when it may finish.
-GATED_JOB = ("NN1", "1")  # method, seed
+# the fit job that runs GATED_JOB waits until the file GATE exists, so that a test decides when it may finish.
+# Ridge's fit job is submitted last (after Ridge's CV), so that the two other jobs (the CV, 1-NN's fit job) can
+# finish first on a node of one core.
+GATED_JOB = ("Ridge", "1")  # method, seed
 GATE_MODULE = """
 import json, os, sys, time
 if "bsrbench.jobs:fit" in sys.argv:
-    w = next(json.loads(a)["wildcards"] for a in sys.argv if a.startswith('{{"input"'))
-    if (w["method"], str(w["seed"])) == {job!r}:
+    job = next(json.loads(a) for a in sys.argv if a.startswith('{{"block"') or a.startswith('{{"input"'))
+    seeds = [(s["wildcards"]["method"], str(s["wildcards"]["seed"])) for s in job.get("block", [job])]
+    if {job!r} in seeds:
         deadline = time.monotonic() + 900
         while not os.path.exists({gate!r}) and time.monotonic() < deadline:
             time.sleep(0.2)
@@ -131,19 +136,30 @@ def slurm_jobs(name, accounting):
 
 
 def job_of(path):
-    """(rule, wildcards) of a fit or CV output path results/ci/<rule>/<protocol>/<source>/<activity>/<method>/
-    n<n>/seed<seed>.<ext>, named as the plugin's comments name them; None for other paths."""
+    """(rule, wildcards) of the job that writes a fit or CV output path results/ci/<rule>/<protocol>/<source>/
+    <activity>/<method>/n<n>/seed<seed>.<ext> (the job of all the seeds of its cell), named as the plugin's
+    comments name them; None for other paths."""
     parts = Path(path).parts
     if parts[:2] != ("results", "ci") or parts[2] not in ("fit", "cv") or len(parts) != 9:
         return None
-    protocol, source, activity, method, n, seed = parts[3:]
-    return parts[2], f"{protocol}_{source}_{activity}_{method}_{n[1:]}_{Path(seed).stem[4:]}"
+    protocol, source, activity, method, n, _ = parts[3:]
+    return parts[2], f"{protocol}_{source}_{activity}_{method}_{n[1:]}"
 
 
-def cluster_jobs(work):
-    """(rule, wildcards) of every fit and CV result in ``work``."""
-    found = (work / "results" / "ci").glob("*/*/*/*/*/n*/seed*.json")
-    return {j for j in (job_of(p.relative_to(work)) for p in found) if j}
+def job_outputs(work):
+    """{(rule, wildcards): its fit and CV result files} of the jobs with results in ``work``."""
+    out = {}
+    for p in (work / "results" / "ci").glob("*/*/*/*/*/n*/seed*.json"):
+        path = p.relative_to(work)
+        if job := job_of(path):
+            out.setdefault(job, set()).add(path)
+    return out
+
+
+def cluster_jobs(work, outputs):
+    """(rule, wildcards) of the jobs whose every result of ``outputs`` (:func:`job_outputs` of a complete run)
+    is in ``work``."""
+    return {job for job, files in outputs.items() if all((work / f).exists() for f in files)}
 
 
 def assert_no_job_server(work):
@@ -159,14 +175,16 @@ def assert_no_job_server(work):
 
 @pytest.fixture(scope="module")
 def local_run(tmp_path_factory):
-    """The same study run locally: its tables and its fit and CV jobs."""
+    """The same study run locally: its tables, its fit and CV jobs and their result files."""
     work = copy_tree(tmp_path_factory.mktemp("local"))
     res = smk(TARGET, "--cores", "2", *STUDY, cwd=work)
     assert res.returncode == 0, res.stderr[-3000:]
-    jobs = cluster_jobs(work)
-    # 2 methods x 2 seeds, and one CV of Ridge's grid (cv mode per_size: one per training size)
-    assert {r for r, _ in jobs} == {"fit", "cv"} and len(jobs) == 5, jobs
-    return tables(work), jobs
+    outputs = job_outputs(work)
+    jobs = cluster_jobs(work, outputs)
+    # 2 methods, each one job of its 2 seeds, and one CV of Ridge's grid (cv mode per_size: one per training size)
+    assert {r for r, _ in jobs} == {"fit", "cv"} and len(jobs) == 3, jobs
+    assert sorted(len(f) for f in outputs.values()) == [1, 2, 2], outputs
+    return tables(work), jobs, outputs
 
 
 @on_cluster[0]
@@ -198,7 +216,7 @@ def test_sacct_on_a_cluster_without_accounting_stops_before_any_job(tmp_path):
 def test_squeue_run_without_accounting_retries_a_cancelled_fit(tmp_path, local_run):
     """Status by squeue; a fit job scancelled while it runs is resubmitted (the profile's retries) and the run
     completes by itself with the local run's tables."""
-    local_tables, local_jobs = local_run
+    local_tables, local_jobs, _ = local_run
     work = copy_tree(tmp_path)
     log = work / "run.log"
     with slurm_cluster():
@@ -257,7 +275,7 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
 
     One fit job (GATED_JOB) cannot finish before the test opens its gate: the kill lands with it unfinished
     and at least two others done, and it is then cancelled, so that it is missing however fast the machine."""
-    local_tables, local_jobs = local_run
+    local_tables, local_jobs, outputs = local_run
     work = copy_tree(tmp_path)
     log = work / "run.log"
     gated_env_, gate = gated_env(work)
@@ -271,9 +289,10 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
             deadline = time.monotonic() + 300
             while time.monotonic() < deadline and proc.poll() is None:
                 time.sleep(0.5)
-                if "SLURM run ID" in log.read_text() and len(cluster_jobs(work)) >= 2:
+                if "SLURM run ID" in log.read_text() and len(cluster_jobs(work, outputs)) >= 2:
                     break
             assert proc.poll() is None, log.read_text()[-3000:]
+            assert len(cluster_jobs(work, outputs)) >= 2, log.read_text()[-3000:]
             proc.send_signal(signal.SIGKILL)
             proc.wait(timeout=30)
         finally:
@@ -282,20 +301,20 @@ def test_sacct_run_with_accounting_killed_then_rerun_submits_only_the_missing_jo
         first = run_id(log.read_text())
         # The gated job, if submitted, is cancelled (found by squeue: slurmctld's records, which sacct's may
         # lag); the other jobs it had submitted run to their end on their own.
-        method, seed = GATED_JOB
+        method, _ = GATED_JOB
         for jobid, rule, wildcards, _ in slurm_jobs(first, False):
-            if rule == "fit" and wildcards.endswith(f"_{method}_30_{seed}"):
+            if rule == "fit" and wildcards.endswith(f"_{method}_30"):
                 subprocess.run(["scancel", jobid], check=True)
         deadline = time.monotonic() + 300
         while any(s in ("PENDING", "RUNNING") for *_, s in slurm_jobs(first, True)):
             assert time.monotonic() < deadline
             time.sleep(1)
         gate.touch()  # the rerun's jobs pass
-        done = cluster_jobs(work)
+        done = cluster_jobs(work, outputs)
         incomplete = incomplete_outputs(work)
         kept = done - {job_of(p) for p in incomplete}
         missing = local_jobs - kept
-        assert any(r == "fit" and w.endswith(f"_{method}_30_{seed}") for r, w in missing), missing
+        assert any(r == "fit" and w.endswith(f"_{method}_30") for r, w in missing), missing
         assert 0 < len(missing) < len(local_jobs), (done, incomplete)
 
         res = smk(TARGET, *SLURM_ARGS, *STUDY, "--unlock", cwd=work)

@@ -162,6 +162,11 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
             r"\(Repetitions",
         ),
         (
+            "seeds_per_job=0",
+            r"^configuration: key 'seeds_per_job', value 0: 0 is less than the minimum of 1; expected "
+            r"minimum: 1 \(Seeds of a",
+        ),
+        (
             "datasets={hsc: {golf: {fromat: mat}}}",
             r"^data sets \(config/datasets\.yaml\): unknown key "
             r"'datasets\.hsc\.golf\.fromat' \(value 'mat'\): .*'format'",
@@ -172,7 +177,15 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
             r"match '\^\[a-z0-9_\]\+\$'",
         ),
     ],
-    ids=["typo", "enum", "nested-typo", "minimum", "datasets-typo", "datasets-name"],
+    ids=[
+        "typo",
+        "enum",
+        "nested-typo",
+        "minimum",
+        "seeds-per-job",
+        "datasets-typo",
+        "datasets-name",
+    ],
 )
 def test_schema_error_is_one_line_naming_the_key(override, message):
     """`snakemake -n --config n_trian='[30]'` printed 966 lines (Snakemake's validation error dumps the schema and

@@ -1014,6 +1014,28 @@ class Study:
         """Split seeds seed_start .. seed_start + n_seeds - 1."""
         return list(range(self.first_seed, self.first_seed + self.config["n_seeds"]))
 
+    @property
+    def seed_blocks(self):
+        """The seeds in consecutive blocks of ``seeds_per_job`` (all in one block when null), one fit job each."""
+        size = self.config.get("seeds_per_job") or len(self.seeds)
+        return [self.seeds[i : i + size] for i in range(0, len(self.seeds), size)]
+
+    def cv_blocks(self):
+        """{tuple of seeds: [method, ...]}: the blocks of seeds whose CV one cv job runs, and the methods whose CV
+        they are (every configured method with a CV): the seed blocks for a per_job CV, the first seed alone for
+        a per_size CV."""
+        out = {}
+        for name in self.config["methods"]:
+            if self.cv_seed(name, self.first_seed) is None:
+                continue
+            if self.method_cv(name)["mode"] == "per_size":
+                blocks = [[self.first_seed]]
+            else:
+                blocks = self.seed_blocks
+            for block in blocks:
+                out.setdefault(tuple(block), []).append(name)
+        return out
+
     def runs_cell(self, protocol, source, activity, n_train):
         """False for the cells skipped because too few test frames would remain."""
         return (protocol, source, activity, int(n_train)) not in self.skipped

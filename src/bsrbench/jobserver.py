@@ -1,6 +1,7 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
-Every split of the study is its own Snakemake job, and most jobs compute for well under a second, while a fresh
+The study's fits run in thousands of short jobs (one per seed, or one per block of seeds that runs the job of each
+seed in turn, :func:`run_block`), and most fits compute for well under a second, while a fresh
 interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
 (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
@@ -219,6 +220,29 @@ def job_params():
     return job
 
 
+def block_job_params(seeds, per_seed_input=None):
+    """A Snakemake ``params`` function like :func:`job_params` for a job that runs a block of seeds: the JSON
+    ``{"block": [spec, ...]}``, one spec per seed of ``seeds`` (in order), each the spec that :func:`job_params`
+    gives the one-seed job of that seed: its wildcards with ``seed``, its output files (the block's named outputs
+    are lists with one file per seed, in seed order), the block's named inputs, except those of ``per_seed_input``
+    ({name: function of the seed's wildcards (attributes) to the input, as the one-seed rule's input function})."""
+    import json
+    from types import SimpleNamespace
+
+    def job(wildcards, input, output):
+        specs = []
+        for i, seed in enumerate(seeds):
+            w = {**_named(wildcards), "seed": str(seed)}
+            inp = _named(input)
+            for name, get in (per_seed_input or {}).items():
+                inp[name] = _plain(get(SimpleNamespace(**w)))
+            out = {name: files[i] for name, files in _named(output).items()}
+            specs.append({"input": inp, "output": out, "wildcards": w})
+        return json.dumps({"block": specs}, sort_keys=True)
+
+    return job
+
+
 def job_settings(params):
     """A Snakemake ``params`` function: ``params`` (names to values or to functions of the wildcards) evaluated,
     as JSON: the job's ``params``. It depends on the wildcards only, so Snakemake's params trigger records it
@@ -274,7 +298,7 @@ def run_local(target, job):
         os.environ[var] = threads  # before numba and BLAS are imported
     log = job.get("log") or []
     if log:
-        sys.stderr = open(log[0], "w")
+        sys.stderr = open(log[0], "a" if job.get("log_append") else "w", buffering=1)
     _resolve(target)(job)
 
 
@@ -308,6 +332,40 @@ def run(target, job, *, use_server=True):
             log = (job.get("log") or ["(no log)"])[0]
             raise SystemExit(f"job {target} failed in the job server; see {log}:\n{detail}")
     run_local(target, job)
+
+
+def run_block(target, specs, *, params, threads, log, use_server=True):
+    """Run the jobs of a block of seeds (:func:`block_job_params`) one after the other, each as :func:`run` runs the
+    job of one seed, all logging to the block's ``log`` (emptied first). Stops at the first seed that fails, with
+    a message naming it (SystemExit); Snakemake then removes the outputs of the whole block, and reruns it whole."""
+    import traceback
+
+    if log:
+        open(log[0], "w").close()
+    seeds = [spec["wildcards"]["seed"] for spec in specs]
+    for spec in specs:
+        seed = spec["wildcards"]["seed"]
+        job = dict(spec, params=params, threads=threads, log=log, log_append=True)
+        if log:
+            with open(log[0], "a") as f:
+                print(f"--- seed {seed} ---", file=f)
+        stderr = sys.stderr
+        try:
+            run(target, job, use_server=use_server)
+        except (Exception, SystemExit) as exc:
+            # raised in this process (run_local): its traceback into the log
+            if not isinstance(exc, SystemExit):
+                traceback.print_exc()
+                exc = f"{type(exc).__name__}: {exc}"
+            where = f"; see {log[0]}" if log else ""
+            raise SystemExit(
+                f"{target}: seed {seed} of the block of seeds {seeds[0]}-{seeds[-1]} failed{where}:\n{exc}"
+            ) from None
+        finally:
+            # run in this process, the job's stderr was its log: the block's message goes to the command's
+            if sys.stderr is not stderr:
+                sys.stderr.close()
+                sys.stderr = stderr
 
 
 def _connect(path):
@@ -524,7 +582,8 @@ def _worker(request, conn, result_w, inherited):
         job = request["job"]
         log = job.get("log") or []
         if log:
-            fd = os.open(log[0], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            mode = os.O_APPEND if job.get("log_append") else os.O_TRUNC
+            fd = os.open(log[0], os.O_WRONLY | os.O_CREAT | mode, 0o644)
             os.dup2(fd, 1)
             os.dup2(fd, 2)
             os.close(fd)
@@ -784,11 +843,21 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--log", action="append", default=[])
     args = ap.parse_args(argv[1:])
-    job = dict(
-        json.loads(args.job), params=json.loads(args.settings), threads=args.threads, log=args.log
-    )
+    spec, params = json.loads(args.job), json.loads(args.settings)
+    use_server = os.environ.get(USE_SERVER_VAR, "1") != "0"
     try:
-        run(args.target, job, use_server=os.environ.get(USE_SERVER_VAR, "1") != "0")
+        if "block" in spec:
+            run_block(
+                args.target,
+                spec["block"],
+                params=params,
+                threads=args.threads,
+                log=args.log,
+                use_server=use_server,
+            )
+        else:
+            job = dict(spec, params=params, threads=args.threads, log=args.log)
+            run(args.target, job, use_server=use_server)
     except KeyboardInterrupt:
         # Ctrl-C reaches every job of the terminal's process group: Snakemake reports the interrupted jobs and
         # bin/study how to resume, so a traceback per running job would only bury that line

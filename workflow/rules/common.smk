@@ -2,6 +2,7 @@
 import os
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from snakemake.logging import logger
 
@@ -69,6 +70,31 @@ def chain_inputs(wildcards):
         f"{RESULTS}/fit/{w.protocol}/{w.source}/{w.activity}/{w.method}/n{w.n_train}/seed{w.seed}"
     )
     return [f"{split}/chain{c}.npz" for c in range(STUDY.n_chains(w.method))]
+
+
+def seed_files(pattern, seeds):
+    """``pattern``'s files of ``seeds`` (one per seed, in order), its other wildcards kept."""
+    return expand(pattern, seed=seeds, allow_missing=True)
+
+
+def block_name(seeds):
+    """The block's name in its rule, log and benchmark: seed3 (one seed) or seeds0to9."""
+    return f"seed{seeds[0]}" if len(seeds) == 1 else f"seeds{seeds[0]}to{seeds[-1]}"
+
+
+def with_seed(wildcards, seed):
+    """A block job's wildcards with the wildcard ``seed`` of one of its seeds."""
+    return SimpleNamespace(**dict(wildcards.items()), seed=str(seed))
+
+
+def block_cv_inputs(seeds):
+    """The CV results a block's fits read (each once)."""
+
+    def inputs(wildcards):
+        files = (cv_input(with_seed(wildcards, s)) for s in seeds)
+        return sorted({f for f in files if f})
+
+    return inputs
 
 
 def estimator_sources(wildcards):
@@ -186,12 +212,12 @@ def gxy_inputs(wildcards):
 
 
 def config_overrides():
-    """This run's `--config KEY=VALUE` strings that configure the study (all but job_server, which reruns
-    nothing, like --cores)."""
+    """This run's `--config KEY=VALUE` strings that configure the study (all but job_server and seeds_per_job,
+    which change where and in which jobs the fits run, not their results, like --cores)."""
     return [
         str(a)
         for a in workflow.config_settings.config_args or []
-        if str(a).partition("=")[0].strip() != "job_server"
+        if str(a).partition("=")[0].strip() not in ("job_server", "seeds_per_job")
     ]
 
 

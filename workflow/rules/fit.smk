@@ -1,5 +1,6 @@
-# One fit job per split and method; CV jobs choose hyper-parameters.
-# Jobs run in bsrbench.jobs, through the job server.
+# Fit jobs: one per (protocol, source, activity, method, n_train) and block of seeds (config key seeds_per_job), one
+# per seed with seeds_per_job 1; CV jobs choose hyper-parameters. The files stay one per seed either way.
+# Jobs run in bsrbench.jobs, through the job server; a block's seeds one after the other (bsrbench.jobserver).
 
 JOB = (
     "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "
@@ -36,54 +37,123 @@ CHAIN_PARAMS = dict(
 )
 
 
-rule cv:
-    input:
-        features="results/features/{source}/{activity}.npz",
-        code=estimator_sources,
-    output:
-        json=f"{RESULTS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
-    log:
-        f"{LOGS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
-    conda:
-        "../envs/bsrbench.yaml"
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=120,
-    params:
-        settings=jobserver.job_settings(CV_PARAMS),
-        job=jobserver.job_params(),
-    shell:
-        JOB.format(target="bsrbench.jobs:cv")
+SPLIT = "{protocol}/{source}/{activity}/{method}/n{n_train}"
+# {seeds: methods} of the cv jobs; a rule cv (of no method) even in a study without CV, as in every other study.
+CV_BLOCKS = STUDY.cv_blocks() or {(STUDY.first_seed,): []}
+PER_SEED = config.get("seeds_per_job") == 1
 
 
-rule fit:
-    input:
-        features="results/features/{source}/{activity}.npz",
-        cv=cv_input,
-        code=estimator_sources,
-    output:
-        row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
-        predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
-    log:
-        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
-    wildcard_constraints:
-        method=method_regex(chained=False),
-    conda:
-        "../envs/bsrbench.yaml"
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=30,
-    params:
-        settings=jobserver.job_settings(FIT_PARAMS),
-        job=jobserver.job_params(),
-    shell:
-        JOB.format(target="bsrbench.jobs:fit")
+# seeds_per_job 1: one job per seed.
+if PER_SEED:
+
+    rule cv:
+        input:
+            features="results/features/{source}/{activity}.npz",
+            code=estimator_sources,
+        output:
+            json=f"{RESULTS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
+        log:
+            f"{LOGS}/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
+        benchmark:
+            f"{RESULTS}/benchmarks/cv/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
+        conda:
+            "../envs/bsrbench.yaml"
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=120,
+        params:
+            settings=jobserver.job_settings(CV_PARAMS),
+            job=jobserver.job_params(),
+        shell:
+            JOB.format(target="bsrbench.jobs:cv")
+
+    rule fit:
+        input:
+            features="results/features/{source}/{activity}.npz",
+            cv=cv_input,
+            code=estimator_sources,
+        output:
+            row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
+            predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
+        log:
+            f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
+        benchmark:
+            f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.tsv"
+        wildcard_constraints:
+            method=method_regex(chained=False),
+        conda:
+            "../envs/bsrbench.yaml"
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=30,
+        params:
+            settings=jobserver.job_settings(FIT_PARAMS),
+            job=jobserver.job_params(),
+        shell:
+            JOB.format(target="bsrbench.jobs:fit")
+
+else:
+    # One rule per block of seeds (a rule's outputs are fixed by its wildcards), named cv/fit when a cell has
+    # one block.
+    for seeds, methods in CV_BLOCKS.items():
+
+        rule:
+            name:
+                "cv" if len(CV_BLOCKS) == 1 else f"cv_{block_name(seeds)}"
+            input:
+                features="results/features/{source}/{activity}.npz",
+                code=estimator_sources,
+            output:
+                json=seed_files(f"{RESULTS}/cv/{SPLIT}/seed{{seed}}.json", seeds),
+            log:
+                f"{LOGS}/cv/{SPLIT}/{block_name(seeds)}.log",
+            benchmark:
+                f"{RESULTS}/benchmarks/cv/{SPLIT}/{block_name(seeds)}.tsv"
+            wildcard_constraints:
+                method="|".join(methods) or "(?!x)x",
+            conda:
+                "../envs/bsrbench.yaml"
+            threads: 1
+            resources:
+                mem_mb=2000,
+                runtime=120 * len(seeds),
+            params:
+                settings=jobserver.job_settings(CV_PARAMS),
+                job=jobserver.block_job_params(seeds),
+            shell:
+                JOB.format(target="bsrbench.jobs:cv")
+
+    for seeds in STUDY.seed_blocks:
+
+        rule:
+            name:
+                "fit" if len(STUDY.seed_blocks) == 1 else f"fit_{block_name(seeds)}"
+            input:
+                features="results/features/{source}/{activity}.npz",
+                cv=block_cv_inputs(seeds),
+                code=estimator_sources,
+            output:
+                row=seed_files(f"{RESULTS}/fit/{SPLIT}/seed{{seed}}.json", seeds),
+                predictions=seed_files(f"{RESULTS}/fit/{SPLIT}/seed{{seed}}.npz", seeds),
+            log:
+                f"{LOGS}/fit/{SPLIT}/{block_name(seeds)}.log",
+            benchmark:
+                f"{RESULTS}/benchmarks/fit/{SPLIT}/{block_name(seeds)}.tsv"
+            wildcard_constraints:
+                method=method_regex(chained=False),
+            conda:
+                "../envs/bsrbench.yaml"
+            threads: 1
+            resources:
+                mem_mb=2000,
+                runtime=30 * len(seeds),
+            params:
+                settings=jobserver.job_settings(FIT_PARAMS),
+                job=jobserver.block_job_params(seeds, {"cv": cv_input}),
+            shell:
+                JOB.format(target="bsrbench.jobs:fit")
 
 
 # `chains: C` > 1: one job per chain, pooled per split.
