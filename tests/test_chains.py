@@ -214,3 +214,24 @@ def test_a_gaussian_method_pooled_from_one_chain_scores_as_its_fit(tmp_path):
     # without a level, no conformal refit
     row, arrays = run_job(spec, feats, estimator=rvm, params={})
     assert row["conformal_coverage"] is None and "conformal_radius" not in arrays
+
+
+def test_a_chain_keeps_every_draw_of_unequal_weights_and_a_subset_of_equal_ones(tmp_path):
+    """Self-normalized likelihood weights can put all their mass on draws that an evenly spaced subset leaves
+    out (0/0 weights: hsc golf, PMtextbeta); those chains keep every draw with the model's own weights."""
+    from bsrbench.runs import SCORE_DRAWS_PER_CHAIN
+
+    feats = _features(tmp_path)
+    spec = JobSpec("syn", "act", "PMtextbeta", 40, 0, min_test=50)
+    params = dict(PARAMS, n_iter=120, n_burn_in=20, thin=2)  # 50 retained samples
+    uniform = run_chain(spec, feats, estimator=BSR, params=params, chain=0)
+    assert uniform["score_weights"].shape[1] == SCORE_DRAWS_PER_CHAIN < 50
+    np.testing.assert_allclose(uniform["score_weights"], 1.0 / SCORE_DRAWS_PER_CHAIN)
+    weighted = dict(params, prediction="paper-text", prediction_weighting="likelihood")
+    c = run_chain(spec, feats, estimator=BSR, params=weighted, chain=0)
+    w = c["score_weights"]
+    assert w.shape == (c["test"].size, 50) and np.isfinite(w).all()
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-12)
+    assert (
+        w.max(axis=1) > 1.5 / 50
+    ).any()  # unequal: the weights are the likelihood's, not uniform

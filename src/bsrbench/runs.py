@@ -430,7 +430,7 @@ def run_chain(spec, features, *, estimator, params, chain, conformal=None):
     the estimator has ``predict_draws(X)`` returning ``(draws (T, L, outputs), weights)`` in the units of the
     fitted Y: ``draw_error`` (test error in degrees of each retained posterior sample) and
     ``score_draws`` / ``score_weights`` (:data:`SCORE_DRAWS_PER_CHAIN` posterior predictive draws of the test
-    angles, noise included, and their weights renormalised). Chain 0 of a method with a predictive std also
+    angles, noise included, and their weights renormalised; every draw where the weights are unequal). Chain 0 of a method with a predictive std also
     holds the split-conformal ``conformal_radius``, ``conformal_coverage`` and ``conformal_level`` when
     ``conformal`` is set. Then ``chain``, ``seed``, ``n_burn_in``, ``fit_seconds``,
     ``predict_seconds``.
@@ -461,10 +461,15 @@ def run_chain(spec, features, *, estimator, params, chain, conformal=None):
         )
         samples, weights = _scored_draws(spec, split, est, X_test, draws=noise_free)
         if samples is not None:
-            keep = np.unique(
-                np.linspace(0, samples.shape[1] - 1, SCORE_DRAWS_PER_CHAIN).round().astype(int)
-            )
-            w = np.asarray(weights, dtype=float)[:, keep]
+            w = np.asarray(weights, dtype=float)
+            keep = np.arange(samples.shape[1])
+            if np.all(w == w[:, :1]):
+                # equally weighted draws: an evenly spaced subset is a smaller sample of the same predictive.
+                # Unequal (self-normalized likelihood) weights are all kept: a subset can hold none of the weight.
+                keep = np.unique(
+                    np.linspace(0, samples.shape[1] - 1, SCORE_DRAWS_PER_CHAIN).round().astype(int)
+                )
+            w = w[:, keep]
             out["score_draws"] = samples[:, keep, :].astype(np.float32)
             out["score_weights"] = w / w.sum(axis=1, keepdims=True)
     predict_seconds = time.perf_counter() - t0
