@@ -278,3 +278,12 @@ def test_cell_shifts_are_changes_of_the_mean_in_standard_errors_of_the_old_mean(
     se = math.sqrt(14 / 3) / 2
     assert out["se_old"].iloc[0] == pytest.approx(se)
     assert out["z"].iloc[0] == pytest.approx(1.0 / se)
+
+
+def test_a_rerun_row_runs_blas_on_one_thread_as_the_fit_jobs_do(monkeypatch):
+    from threadpoolctl import threadpool_info
+
+    monkeypatch.setattr(freshness, "_rerun_row", lambda row, config, folder: threadpool_info())
+    inside = freshness.rerun_row({}, {})
+    blas = [p for p in inside if p["user_api"] == "blas"]
+    assert blas and all(p["num_threads"] == 1 for p in blas)

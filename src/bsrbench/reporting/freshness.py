@@ -266,7 +266,16 @@ def _value(row, col, default=None):
 def rerun_row(row, config, features_folder="results/features"):
     """The result row today's code makes for the published ``row`` (a dict of a table's row): the same split and
     method seed, the row's stored ``estimator``, ``params`` (the CV's choice, so no CV is rerun), pose transform and
-    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`)."""
+    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`).
+    BLAS runs on one thread, as in the study's fit jobs (``threads: 1``): on two it sums in another order, and a
+    last-bit difference can move a test frame across its conformal interval's edge (coverage is a count)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _rerun_row(row, config, features_folder)
+
+
+def _rerun_row(row, config, features_folder):
     from ..io import load_features
     from ..runs import pool_chains, run_chain, run_job
     from ..splits import JobSpec
