@@ -233,8 +233,9 @@ def study_config(files):
     for path in [CONFIG / "config.yaml", *(CONFIG.parent / f for f in files)]:
         try:
             data = yaml.safe_load(Path(path).read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
-            raise DataFileError(path, f"cannot read the study's configuration ({exc})") from None
+        except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
+            reason = str(exc).splitlines()[0]
+            raise DataFileError(path, f"cannot read the study's configuration ({reason})") from None
         if not isinstance(data, dict):
             raise DataFileError(path, "expected a YAML mapping of configuration keys")
         for k, v in data.items():
