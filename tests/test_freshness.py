@@ -287,3 +287,29 @@ def test_a_rerun_row_runs_blas_on_one_thread_as_the_fit_jobs_do(monkeypatch):
     inside = freshness.rerun_row({}, {})
     blas = [p for p in inside if p["user_api"] == "blas"]
     assert blas and all(p["num_threads"] == 1 for p in blas)
+
+
+def test_shift_names_cells_with_missing_or_nan_seeds_and_refuses_tables_without_common_cells(
+    study, tmp_path, capsys
+):
+    new = tmp_path / "new.csv"
+    df = pd.read_csv(study)
+    df.loc[df["method"] == "Ridge", "error"] = float(
+        "nan"
+    )  # a failed regeneration must not look unchanged
+    df.to_csv(new, index=False)
+    assert main(["shift", str(study), str(new)]) == 1
+    out = capsys.readouterr().out
+    assert "WARNING: 1 cell(s) have no z" in out and "method=Ridge" in out
+    other = tmp_path / "other.csv"
+    df.assign(activity="walk").to_csv(other, index=False)
+    assert main(["shift", str(study), str(other)]) == 2
+    assert "have no cell in common" in capsys.readouterr().err
+    assert main(["shift", str(study), str(study), "--column", "method"]) == 2
+    assert "is not numeric" in capsys.readouterr().err
+    assert main(["shift", str(study), str(study)]) == 1  # Ridge has one seed: no standard error
+    assert "WARNING: 1 cell(s) have no z" in capsys.readouterr().out
+    nn = tmp_path / "nn.csv"
+    pd.read_csv(study).query("method == 'NN1'").to_csv(nn, index=False)
+    assert main(["shift", str(nn), str(nn)]) == 0
+    assert "largest |z| 0.00" in capsys.readouterr().out
