@@ -215,13 +215,13 @@ def test_configfile_args_reads_snakemakes_forms():
     assert configfile_args(["--config", "study=x", "all"]) == []
 
 
-@pytest.mark.parametrize("entry", ["foo", "=1", "study"])
+@pytest.mark.parametrize("entry", ["foo", "=1", "study", "1x=2", "x y=1"])
 def test_study_names_a_config_entry_that_is_not_key_value(entry):
     rc, out = run([str(ROOT / "bin" / "study"), "-n", "--config", "n_seeds=1", entry], ROOT)
     assert rc == 2
     assert_one_line(
         out,
-        f"[study] --config {entry!r}: expected KEY=VALUE, for example --config study=mine "
+        f"[study] --config {entry!r}: expected KEY=VALUE (KEY: letters, digits, _ or -, from a letter or _), for example --config study=mine "
         "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)",
     )
 
@@ -230,6 +230,7 @@ def test_argv_problems_reads_config_entries_in_snakemakes_forms():
     from bsrbench.config import argv_problems
 
     assert argv_problems(["--config", "study=x", "n_seeds=2", "-n", "all"]) == []
-    assert argv_problems(["-C", "a=1", "--config=b=2"]) == []
+    assert argv_problems(["-C", "ab=1", "--config=bc=2", "-Ccd=3"]) == []
+    assert argv_problems(["-Cfoo"])[0].startswith("--config 'foo': expected KEY=VALUE")
     bad = argv_problems(["--config", "study=x", "oops", "--cores", "2", "target"])
     assert len(bad) == 1 and bad[0].startswith("--config 'oops': expected KEY=VALUE")

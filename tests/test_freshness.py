@@ -278,3 +278,38 @@ def test_cell_shifts_are_changes_of_the_mean_in_standard_errors_of_the_old_mean(
     se = math.sqrt(14 / 3) / 2
     assert out["se_old"].iloc[0] == pytest.approx(se)
     assert out["z"].iloc[0] == pytest.approx(1.0 / se)
+
+
+def test_a_rerun_row_runs_blas_on_one_thread_as_the_fit_jobs_do(monkeypatch):
+    from threadpoolctl import threadpool_info
+
+    monkeypatch.setattr(freshness, "_rerun_row", lambda row, config, folder: threadpool_info())
+    inside = freshness.rerun_row({}, {})
+    blas = [p for p in inside if p["user_api"] == "blas"]
+    assert blas and all(p["num_threads"] == 1 for p in blas)
+
+
+def test_shift_names_cells_with_missing_or_nan_seeds_and_refuses_tables_without_common_cells(
+    study, tmp_path, capsys
+):
+    new = tmp_path / "new.csv"
+    df = pd.read_csv(study)
+    df.loc[df["method"] == "Ridge", "error"] = float(
+        "nan"
+    )  # a failed regeneration must not look unchanged
+    df.to_csv(new, index=False)
+    assert main(["shift", str(study), str(new)]) == 1
+    out = capsys.readouterr().out
+    assert "WARNING: 1 cell(s) have no z" in out and "method=Ridge" in out
+    other = tmp_path / "other.csv"
+    df.assign(activity="walk").to_csv(other, index=False)
+    assert main(["shift", str(study), str(other)]) == 2
+    assert "have no cell in common" in capsys.readouterr().err
+    assert main(["shift", str(study), str(study), "--column", "method"]) == 2
+    assert "is not numeric" in capsys.readouterr().err
+    assert main(["shift", str(study), str(study)]) == 1  # Ridge has one seed: no standard error
+    assert "WARNING: 1 cell(s) have no z" in capsys.readouterr().out
+    nn = tmp_path / "nn.csv"
+    pd.read_csv(study).query("method == 'NN1'").to_csv(nn, index=False)
+    assert main(["shift", str(nn), str(nn)]) == 0
+    assert "largest |z| 0.00" in capsys.readouterr().out

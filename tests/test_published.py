@@ -258,7 +258,14 @@ def test_a_part_published_with_its_studys_configfiles_is_checked_against_them(
     dest.parent.mkdir(parents=True)
     missing = tmp_path / "nope.yaml"
     assert main(["publish", str(src), str(dest), "--configfiles", str(missing)]) == 2
-    assert f"--configfiles {missing}: no such file" in capsys.readouterr().err
+    assert f"{missing}: cannot read the study's configuration" in capsys.readouterr().err
+    assert not dest.exists()
+    garbage = tmp_path / "garbage.yaml"
+    garbage.write_bytes(b"\x00\xff: [")
+    assert main(["publish", str(src), str(dest), "--configfiles", str(garbage)]) == 2
+    assert f"{garbage}: cannot read the study's configuration" in capsys.readouterr().err
+    assert main(["publish", str(src), str(dest), "--configfiles", "config/ci.yaml"]) == 2
+    assert "do not run the methods" in capsys.readouterr().err
     assert not dest.exists()
     assert main(["publish", str(src), str(dest), "--configfiles", "config/paper.yaml"]) == 0
     prov = json.loads(freshness.provenance_path(dest).read_text())

@@ -38,13 +38,18 @@ def option_args(argv, names):
     """The values a snakemake argument list ``argv`` gives the options ``names`` (each takes the following
     arguments up to the next option, as Snakemake's parser does, or ``--name=VALUE``)."""
     values, taking = [], False
+    short = [n for n in names if len(n) == 2 and n[0] == "-" and n[1] != "-"]
     for arg in argv:
         arg = str(arg)
         name, eq, value = arg.partition("=")
+        attached = next((n for n in short if arg.startswith(n) and len(arg) > 2), None)
         if name in names:
             taking = not eq
             if eq:
                 values.append(value)
+        elif attached:  # -Cfoo: argparse reads the value attached to a short option
+            taking = False
+            values.append(arg[2:])
         elif arg.startswith("-"):
             taking = False
         elif taking:
@@ -61,12 +66,16 @@ def config_arg_problem(entry):
     """What is wrong with one ``--config`` entry, one line (None if it is ``KEY=VALUE``). Snakemake answers
     anything else with a traceback before the Snakefile runs, so ``bin/study`` asks this first."""
     key, eq, _ = entry.partition("=")
-    if not eq or not key.strip():
+    if not eq or not _CONFIG_KEY.match(key):
         return (
-            f"--config {entry!r}: expected KEY=VALUE, for example --config study=mine "
+            f"--config {entry!r}: expected KEY=VALUE (KEY: letters, digits, _ or -, from a letter or _), for example --config study=mine "
             "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)"
         )
     return None
+
+
+#: What Snakemake's command line takes as a ``--config`` key (snakemake/cli.py, ``parse_config``).
+_CONFIG_KEY = re.compile(r"[a-zA-Z_][\w-]*\w$")
 
 
 def argv_problems(argv):

@@ -233,8 +233,9 @@ def study_config(files):
     for path in [CONFIG / "config.yaml", *(CONFIG.parent / f for f in files)]:
         try:
             data = yaml.safe_load(Path(path).read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
-            raise DataFileError(path, f"cannot read the study's configuration ({exc})") from None
+        except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
+            reason = str(exc).splitlines()[0]
+            raise DataFileError(path, f"cannot read the study's configuration ({reason})") from None
         if not isinstance(data, dict):
             raise DataFileError(path, "expected a YAML mapping of configuration keys")
         for k, v in data.items():
@@ -266,7 +267,16 @@ def _value(row, col, default=None):
 def rerun_row(row, config, features_folder="results/features"):
     """The result row today's code makes for the published ``row`` (a dict of a table's row): the same split and
     method seed, the row's stored ``estimator``, ``params`` (the CV's choice, so no CV is rerun), pose transform and
-    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`)."""
+    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`).
+    BLAS runs on one thread, as in the study's fit jobs (``threads: 1``): on two it sums in another order, and a
+    last-bit difference can move a test frame across its conformal interval's edge (coverage is a count)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _rerun_row(row, config, features_folder)
+
+
+def _rerun_row(row, config, features_folder):
     from ..io import load_features
     from ..runs import pool_chains, run_chain, run_job
     from ..splits import JobSpec
@@ -548,6 +558,9 @@ def cell_shifts(old, new, column="error"):
         missing = sorted(set(cells + [column]) - set(df.columns))
         if missing:
             raise InputError(f"the {name} table has no columns {missing}")
+        if not pd.api.types.is_numeric_dtype(df[column]):
+            raise InputError(f"the {name} table's column {column!r} is not numeric")
+    # count: the seeds with a value (NaN left out), so that a cell with a missing or NaN seed is named
     a = old.groupby(cells)[column].agg(["mean", "std", "count"])
     b = new.groupby(cells)[column].agg(["mean", "count"])
     out = a.add_suffix("_old").join(b.add_suffix("_new"), how="inner")
@@ -567,10 +580,19 @@ def shift_report(old_table, new_table, column="error", top=5):
         f"{new_table} against {old_table}: {len(out)} cells in both ({n_old} in the old table, {n_new} in the "
         f"new); column {column}, change of the cell's mean in standard errors of the old cell's mean"
     ]
-    if len(out):
-        z = out["z"].abs()
+    if not len(out):
+        raise InputError(f"{old_table} and {new_table} have no cell in common")
+    z = out["z"].abs()
+    lines.append(
+        f"largest |z| {z.max():.2f}; median |z| {z.median():.2f}; cells with |z| > 2: {(z > 2).sum()}"
+    )
+    uneven = out[(out["count_old"] != out["count_new"]) | out["z"].isna()]
+    if len(uneven):
         lines.append(
-            f"largest |z| {z.max():.2f}; median |z| {z.median():.2f}; cells with |z| > 2: {(z > 2).sum()}"
+            f"WARNING: {len(uneven)} cell(s) have no z (NaN values or one seed) or other seeds with a value "
+            "in the two tables, e.g. "
+            + " ".join(f"{c}={uneven.iloc[0][c]}" for c in cells)
+            + f" ({int(uneven.iloc[0]['count_old'])} old, {int(uneven.iloc[0]['count_new'])} new)"
         )
     for _, r in out.head(top).iterrows():
         cell = " ".join(f"{c}={r[c]}" for c in cells)
@@ -651,8 +673,11 @@ def run_command(args):
                 )
             return 0 if all(ok for ok, _ in out.values()) else 1
         if args.cmd == "shift":
-            print("\n".join(shift_report(args.old, args.new, args.column, args.top)))
-            return 0
+            if args.top < 0:
+                raise InputError(f"--top {args.top}: expected 0 or more")
+            lines = shift_report(args.old, args.new, args.column, args.top)
+            print("\n".join(lines))
+            return 1 if any(line.startswith("WARNING") for line in lines) else 0
         df = merge(args.parts, args.dest)
         print(f"{args.dest}: {len(df)} rows from {len(args.parts)} part(s)", file=sys.stderr)
         return 0

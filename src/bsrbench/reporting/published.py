@@ -116,7 +116,17 @@ def publish(src, dest, study=None, configfiles=None):
             f"table in an existing folder, e.g. reports/published/paper.csv",
         )
     check_study(src, dest, study)
+    # the files must be readable and run the table's methods, or the check and verify could not read their code
+    config = freshness.study_config(configfiles) if configfiles else None
     df = read_results(src)
+    if configfiles:
+        registry = freshness.study_registry(config, " + ".join(configfiles))
+        unknown = sorted(set(df["method"]) - set(registry))
+        if unknown:
+            raise InputError(
+                f"--configfiles {' '.join(configfiles)}: do not run the methods {unknown} of {src}; expected "
+                "the configuration files the study was run with"
+            )
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
     freshness.write_table(df, dest, "the published table")
     # the provenance beside it: per method the fingerprint and digests the staleness check compares
@@ -455,12 +465,6 @@ def main(argv=None):
                 print(paragraph)
             return 0
         if args.cmd == "publish":
-            if args.configfiles:
-                for f in args.configfiles:
-                    if not Path(f).is_file():
-                        raise InputError(
-                            f"--configfiles {f}: no such file; expected a study's YAML file"
-                        )
             df = publish(args.src, args.dest, study=args.study, configfiles=args.configfiles)
             print(f"{args.dest}: {len(df)} rows", file=sys.stderr)
             return 0
