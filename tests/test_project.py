@@ -221,7 +221,7 @@ def test_bin_study_interrupted_says_how_to_resume(tmp_path):
     """Ctrl-C (SIGINT to the terminal's process group) during `bin/study`: the finished jobs' files are kept, the
     last line says the run was interrupted and how to resume it, and the exit code is 130."""
     import signal
-    import time
+    import threading
 
     work = tmp_path / "study"
     work.mkdir()
@@ -243,18 +243,29 @@ def test_bin_study_interrupted_says_how_to_resume(tmp_path):
         start_new_session=True,
         env=dict(os.environ, BSRBENCH_NO_APT="1"),
     )
-    done = []
-    deadline = time.monotonic() + 300
-    while not done and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.5)
-        done = [p for p in (work / "results").rglob("*.npz") if p.is_file()]
-    assert done, "no job finished within 300 s"
+    # interrupt when Snakemake reports its first finished job (read as it comes, so the pipe never fills)
+    lines, finished = [], threading.Event()
+
+    def read():
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("Finished jobid"):
+                finished.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    assert finished.wait(timeout=300), "no job finished within 300 s: " + "".join(lines)[-3000:]
+    done = [p for p in (work / "results").rglob("*.npz") if p.is_file()]
     os.killpg(proc.pid, signal.SIGINT)
-    out, _ = proc.communicate(timeout=300)
+    proc.wait(timeout=300)
+    reader.join(timeout=60)
+    out = "".join(lines)
     assert proc.returncode == 130, out[-3000:]
     last = out.strip().splitlines()[-1]
     assert last == (
         "[study] interrupted: the finished jobs are kept; rerun the same command to resume: "
         "bin/study --configfile config/ci.yaml"
     ), out[-3000:]
-    assert all(p.is_file() for p in done)
+    assert done and all(
+        p.is_file() for p in done
+    )  # the first jobs (features, poses) write .npz files
