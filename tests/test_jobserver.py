@@ -179,6 +179,35 @@ def test_fit_job_same_result_in_server_and_in_process(server_socket, tmp_path):
         np.testing.assert_array_equal(a["_pred"][k], b["_pred"][k], err_msg=k)
 
 
+def test_worker_killed_from_outside_is_named_by_its_signal(server_socket, tmp_path):
+    """A worker killed by someone else (the out-of-memory killer sends SIGKILL) fails its job with the signal's
+    name, not a raw wait status."""
+    pid_file = tmp_path / "worker.pid"
+    job = _ping(tmp_path, sleep=60, pid_file=str(pid_file))
+    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+    client = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.kill(int(pid_file.read_text()), signal.SIGKILL)
+    _, err = client.communicate(timeout=60)
+    assert client.returncode != 0
+    assert "worker was killed by SIGKILL" in err and "status 9" not in err
+
+
+@pytest.mark.parametrize(
+    "how, words",
+    [("os._exit(3)", "exited with code 3"), ("os.kill(os.getpid(), signal.SIGTERM)", "was killed by SIGTERM")],
+)
+def test_exit_status_in_words(how, words):
+    pid = os.fork()
+    if pid == 0:
+        exec(how)
+        os._exit(0)
+    _, status = os.waitpid(pid, 0)
+    assert jobserver._describe_exit(status) == words
+
+
 def test_killed_server_kills_its_worker_and_the_client_runs_the_job_itself(server_socket, tmp_path):
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # the server is up
     server_pid = _listening_pid(server_socket)

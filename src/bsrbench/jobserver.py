@@ -626,6 +626,20 @@ def _find_prctl():
         return None
 
 
+def _describe_exit(status):
+    """A worker's wait status in words: the exit code, or the signal by name (SIGKILL is what the kernel's
+    out-of-memory killer sends)."""
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        try:
+            name = signal.Signals(sig).name
+        except ValueError:
+            name = f"signal {sig}"
+        hint = " (killed from outside, e.g. by the out-of-memory killer)" if sig == signal.SIGKILL else ""
+        return f"was killed by {name}{hint}"
+    return f"exited with code {os.waitstatus_to_exitcode(status)}"
+
+
 class _Job:
     """A running job as the server sees it: the worker's pid, the client's connection, the worker's result pipe."""
 
@@ -643,7 +657,7 @@ class _Job:
         try:
             result = json.loads(b"".join(self.chunks))
         except ValueError:
-            result = _reply("error", f"worker exited with status {status} without a result")
+            result = _reply("error", f"worker {_describe_exit(status)} without a result")
         try:
             _send(self.conn, result)
         except OSError:
