@@ -234,3 +234,26 @@ def test_argv_problems_reads_config_entries_in_snakemakes_forms():
     assert argv_problems(["-Cfoo"])[0].startswith("--config 'foo': expected KEY=VALUE")
     bad = argv_problems(["--config", "study=x", "oops", "--cores", "2", "target"])
     assert len(bad) == 1 and bad[0].startswith("--config 'oops': expected KEY=VALUE")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--config"],
+        ["-C"],
+        ["-n", "--config"],
+        ["--config", "-n", "all"],
+        ["-C", "ab=1", "-C", "--cores", "2"],
+    ],
+)
+def test_argv_problems_names_a_config_option_without_an_entry(argv):
+    """Snakemake takes ``--config`` with no entry and would run the whole study with the defaults."""
+    from bsrbench.config import argv_problems
+
+    assert argv_problems(argv) == ["--config: no KEY=VALUE given"]
+
+
+def test_study_refuses_a_config_option_without_an_entry():
+    rc, out = run([str(ROOT / "bin" / "study"), "-n", "--config"], ROOT)
+    assert rc == 2
+    assert_one_line(out, "[study] --config: no KEY=VALUE given")

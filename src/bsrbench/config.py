@@ -37,24 +37,29 @@ MOTION_FORMATS = ("bvh", "amc")
 def option_args(argv, names):
     """The values a snakemake argument list ``argv`` gives the options ``names`` (each takes the following
     arguments up to the next option, as Snakemake's parser does, or ``--name=VALUE``)."""
-    values, taking = [], False
+    return [v for _, values in option_groups(argv, names) for v in values]
+
+
+def option_groups(argv, names):
+    """``(option, values)`` per occurrence in ``argv`` of an option of ``names``, in order: the values it takes
+    (see :func:`option_args`; empty for an option followed by another option or by nothing)."""
+    groups = []
     short = [n for n in names if len(n) == 2 and n[0] == "-" and n[1] != "-"]
     for arg in argv:
         arg = str(arg)
         name, eq, value = arg.partition("=")
         attached = next((n for n in short if arg.startswith(n) and len(arg) > 2), None)
         if name in names:
+            groups.append((name, [value] if eq else []))
             taking = not eq
-            if eq:
-                values.append(value)
         elif attached:  # -Cfoo: argparse reads the value attached to a short option
+            groups.append((attached, [arg[2:]]))
             taking = False
-            values.append(arg[2:])
         elif arg.startswith("-"):
             taking = False
-        elif taking:
-            values.append(arg)
-    return values
+        elif groups and taking:
+            groups[-1][1].append(arg)
+    return groups
 
 
 def configfile_args(argv):
@@ -81,7 +86,9 @@ _CONFIG_KEY = re.compile(r"[a-zA-Z_][\w-]*\w$")
 def argv_problems(argv):
     """The problems of the ``--configfile`` files and ``--config`` entries of a snakemake argument list."""
     bad = [configfile_problem(f) for f in configfile_args(argv)]
-    bad += [config_arg_problem(e) for e in option_args(argv, ("--config", "-C"))]
+    for _, values in option_groups(argv, ("--config", "-C")):
+        # Snakemake takes --config with no entry (nargs="*") and runs the whole study with the defaults
+        bad += [config_arg_problem(e) for e in values] or ["--config: no KEY=VALUE given"]
     return [m for m in bad if m]
 
 
