@@ -185,7 +185,9 @@ def test_worker_killed_from_outside_is_named_by_its_signal(server_socket, tmp_pa
     pid_file = tmp_path / "worker.pid"
     job = _ping(tmp_path, sleep=60, pid_file=str(pid_file))
     code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
-    client = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True)
+    client = subprocess.Popen(
+        [sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True
+    )
     deadline = time.monotonic() + 60
     while not pid_file.exists() and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -193,11 +195,47 @@ def test_worker_killed_from_outside_is_named_by_its_signal(server_socket, tmp_pa
     _, err = client.communicate(timeout=60)
     assert client.returncode != 0
     assert "worker was killed by SIGKILL" in err and "status 9" not in err
+    # the job's log, which the message points to, says why too: the same line
+    reason = next(line for line in err.splitlines() if "worker was killed by SIGKILL" in line)
+    assert f"see {job['log'][0]}" in err
+    assert reason in Path(job["log"][0]).read_text().splitlines()
+
+
+def test_a_block_seeds_worker_killed_from_outside_says_why_in_the_blocks_log(
+    server_socket, tmp_path
+):
+    """The log of a block of seeds (relative to the job's directory) gets the reason after its seed's header."""
+    pid_file = tmp_path / "worker.pid"
+    job = dict(_ping(tmp_path, sleep=60, pid_file=str(pid_file)), log=["block.log"])
+    code = (
+        "from bsrbench import jobserver; jobserver.run_block('bsrbench.jobserver:ping', "
+        f"[{{k: v for k, v in {job!r}.items() if k in ('input', 'output')}} | {{'wildcards': {{'seed': '0'}}}}], "
+        f"params={job['params']!r}, threads=1, log=['block.log'])"
+    )
+    client = subprocess.Popen(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env=dict(os.environ),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.kill(int(pid_file.read_text()), signal.SIGKILL)
+    _, err = client.communicate(timeout=60)
+    assert client.returncode != 0 and "see block.log" in err
+    reason = next(line for line in err.splitlines() if "worker was killed by SIGKILL" in line)
+    lines = (tmp_path / "block.log").read_text().splitlines()
+    assert lines[0] == "--- seed 0 ---" and lines[-1] == reason
 
 
 @pytest.mark.parametrize(
     "how, words",
-    [("os._exit(3)", "exited with code 3"), ("os.kill(os.getpid(), signal.SIGTERM)", "was killed by SIGTERM")],
+    [
+        ("os._exit(3)", "exited with code 3"),
+        ("os.kill(os.getpid(), signal.SIGTERM)", "was killed by SIGTERM"),
+    ],
 )
 def test_exit_status_in_words(how, words):
     pid = os.fork()

@@ -635,7 +635,11 @@ def _describe_exit(status):
             name = signal.Signals(sig).name
         except ValueError:
             name = f"signal {sig}"
-        hint = " (killed from outside, e.g. by the out-of-memory killer)" if sig == signal.SIGKILL else ""
+        hint = (
+            " (killed from outside, e.g. by the out-of-memory killer)"
+            if sig == signal.SIGKILL
+            else ""
+        )
         return f"was killed by {name}{hint}"
     return f"exited with code {os.waitstatus_to_exitcode(status)}"
 
@@ -643,8 +647,11 @@ def _describe_exit(status):
 class _Job:
     """A running job as the server sees it: the worker's pid, the client's connection, the worker's result pipe."""
 
-    def __init__(self, pid, conn, result_r):
+    def __init__(self, pid, conn, result_r, log=None):
         self.pid, self.conn, self.result_r, self.chunks = pid, conn, result_r, []
+        self.log = (
+            log  # the job's log file (absolute), where a worker that died says nothing itself
+        )
 
     def relay(self):
         """Read the worker's result pipe; at its end, reap the worker and send its result to the client. True when
@@ -658,12 +665,23 @@ class _Job:
             result = json.loads(b"".join(self.chunks))
         except ValueError:
             result = _reply("error", f"worker {_describe_exit(status)} without a result")
+            self._note(result["detail"])
         try:
             _send(self.conn, result)
         except OSError:
             pass
         self.close()
         return True
+
+    def _note(self, line):
+        """Append ``line`` to the job's log: the client's message sends the user there ("see <log>")."""
+        if self.log is None:
+            return
+        try:
+            with open(self.log, "a") as f:
+                print(line, file=f)
+        except OSError:
+            pass
 
     def kill(self):
         """The client closed its connection (its job was killed): kill the worker, so it writes nothing more."""
@@ -689,7 +707,9 @@ def _start_job(conn, request, srv, jobs):
         os.close(result_r)
         _worker(request, conn, result_w, inherited)
     os.close(result_w)
-    return _Job(pid, conn, result_r)
+    log = request["job"].get("log")
+    log = log[0] if isinstance(log, list) and log and isinstance(log[0], str) else None
+    return _Job(pid, conn, result_r, log and os.path.join(request["cwd"], log))
 
 
 def _preload(modules):
