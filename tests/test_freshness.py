@@ -87,6 +87,13 @@ def study(tmp_path, synthetic_features):
     return table
 
 
+def _write_part(df, path, files=("config/ci.yaml",)):
+    """Write rows ``df`` as a part of the study ``files`` (a table and its provenance) to ``path``."""
+    df.to_csv(path, index=False)
+    freshness.write_table_provenance(path, df, list(files))
+    return path
+
+
 def test_a_row_carries_its_methods_fingerprint_and_the_commit(study):
     df = pd.read_csv(study)
     assert (
@@ -195,8 +202,8 @@ def test_merge_keeps_the_newest_row_and_refuses_equal_age_conflicts(study, tmp_p
     b.loc[b.index[0], "error"] = 99.0
     b.loc[b.index[0], "written_at"] = "2100-01-01T00:00:00+00:00"  # newer than a's row of that job
     pa, pb, dest = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "published" / "ci.csv"
-    a.to_csv(pa, index=False)
-    b.to_csv(pb, index=False)
+    _write_part(a, pa)
+    _write_part(b, pb)
     assert main(["merge", str(pa), str(pb), str(dest)]) == 0
     merged = pd.read_csv(dest)
     assert len(merged) == len(df) and merged["error"].tolist().count(99.0) == 1
@@ -231,7 +238,7 @@ def test_merging_a_new_part_into_a_restamped_table_keeps_its_restamp_record(stud
     assert freshness.restamp(study, 3, features_folder=feats)["NN1"][0]
     part = tmp_path / "part.csv"
     new = pd.read_csv(study).iloc[:1].assign(activity="run", written_at="2100-01-01T00:00:00+00:00")
-    new.to_csv(part, index=False)
+    _write_part(new, part)
     assert main(["merge", str(study), str(part), str(study)]) == 0
     assert len(pd.read_csv(study)) == len(df) + 1
     prov = json.loads(freshness.provenance_path(study).read_text())
@@ -257,9 +264,9 @@ def test_merge_into_a_folder_is_one_line_and_exit_2(tmp_path, capsys):
     from bsrbench.reporting.published import main
 
     part = tmp_path / "part.csv"
-    pd.read_csv(ROOT.parent / "reports" / "published" / "ablation-crosstrial.csv").head(3).to_csv(
-        part, index=False
-    )
+    published = ROOT.parent / "reports" / "published" / "ablation-crosstrial.csv"
+    pd.read_csv(published).head(3).to_csv(part, index=False)
+    shutil.copy(freshness.provenance_path(published), freshness.provenance_path(part))
     (tmp_path / "dest.csv").mkdir()
     assert main(["merge", str(part), str(tmp_path / "dest.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -313,3 +320,142 @@ def test_shift_names_cells_with_missing_or_nan_seeds_and_refuses_tables_without_
     pd.read_csv(study).query("method == 'NN1'").to_csv(nn, index=False)
     assert main(["shift", str(nn), str(nn)]) == 0
     assert "largest |z| 0.00" in capsys.readouterr().out
+
+
+def _prov(table):
+    return json.loads(freshness.provenance_path(table).read_text())
+
+
+def _one_error_line(capsys):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0], err
+    return err[0]
+
+
+def test_merge_refuses_a_historical_part_and_writes_nothing(study, tmp_path, capsys):
+    prov = _prov(study)
+    prov["historical"] = "made before the change of X"
+    freshness.provenance_path(study).write_text(json.dumps(prov))
+    part = _write_part(pd.read_csv(study).assign(activity="run"), tmp_path / "part.csv")
+    dest = tmp_path / "published" / "merged.csv"
+    assert main(["merge", str(part), str(study), str(dest)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(f"error: {study}: historical") and "a merge needs current parts" in err
+    assert not dest.exists() and not freshness.provenance_path(dest).exists()
+
+
+def test_merge_refuses_parts_of_different_studies_or_without_provenance(study, tmp_path, capsys):
+    df = pd.read_csv(study)
+    pa = _write_part(df.iloc[:2], tmp_path / "a.csv")
+    pb = _write_part(df.iloc[2:], tmp_path / "b.csv", files=["config/ablation.yaml"])
+    dest = tmp_path / "published" / "merged.csv"
+    assert main(["merge", str(pa), str(pb), str(dest)]) == 2
+    err = _one_error_line(capsys)
+    assert f"{pa} and {pb} are parts of different studies" in err
+    assert "['config/ci.yaml']" in err and "['config/ablation.yaml']" in err
+    freshness.provenance_path(pb).unlink()
+    assert main(["merge", str(pa), str(pb), str(dest)]) == 2
+    assert _one_error_line(capsys).startswith(
+        f"error: {tmp_path / 'b.provenance.json'}: no such file"
+    )
+    assert not dest.exists()
+
+
+def test_merge_refuses_a_part_without_fingerprints(study, tmp_path, capsys):
+    df = pd.read_csv(study)
+    part = _write_part(df.iloc[2:].drop(columns=["code_fingerprint"]), tmp_path / "b.csv")
+    dest = tmp_path / "published" / "merged.csv"
+    assert main(["merge", str(study), str(part), str(dest)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(f"error: {part}: no column 'code_fingerprint'")
+    assert not dest.exists()
+
+
+def test_merge_carries_a_parts_restamp_record_while_the_merged_rows_have_its_fingerprint(
+    study, tmp_path
+):
+    feats = study.parent.parent / "features"
+    df = pd.read_csv(study)
+    df["code_fingerprint"] = "old"
+    df.to_csv(study, index=False)
+    assert all(ok for ok, _ in freshness.restamp(study, 3, features_folder=feats).values())
+    record = _prov(study)["methods"]
+    new = pd.read_csv(study).assign(activity="run", written_at="2100-01-01T00:00:00+00:00")
+    part = _write_part(new, tmp_path / "part.csv")
+    dest = tmp_path / "merged" / "ci.csv"
+    dest.parent.mkdir()
+    assert main(["merge", str(study), str(part), str(dest)]) == 0
+    merged = _prov(dest)["methods"]
+    for m in ("NN1", "Ridge"):
+        assert merged[m]["restamped"] == record[m]["restamped"]
+        assert merged[m]["code_fingerprint"] == record[m]["code_fingerprint"]
+    # a part whose Ridge rows are of other code: the merged Ridge rows no longer have the record's fingerprint
+    new.loc[new["method"] == "Ridge", "code_fingerprint"] = "other"
+    _write_part(new, part)
+    assert main(["merge", str(study), str(part), str(dest)]) == 0
+    merged = _prov(dest)["methods"]
+    assert merged["NN1"]["restamped"] == record["NN1"]["restamped"]
+    assert "restamped" not in merged["Ridge"]
+
+
+def test_merge_with_an_unreadable_destination_provenance_writes_nothing(study, tmp_path, capsys):
+    dest = tmp_path / "merged" / "ci.csv"
+    dest.parent.mkdir()
+    freshness.provenance_path(dest).write_text("{not json")
+    assert main(["merge", str(study), str(dest)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(f"error: {freshness.provenance_path(dest)}: cannot read the provenance")
+    assert not dest.exists()
+    assert freshness.provenance_path(dest).read_text() == "{not json"
+
+
+def test_a_table_and_its_provenance_are_written_both_or_neither(study, tmp_path):
+    before = study.read_bytes(), freshness.provenance_path(study).read_bytes()
+    df = pd.read_csv(study).assign(error=0.0)
+    with pytest.raises(TypeError):  # the provenance cannot be written: a set is no JSON
+        freshness.write_table(df, study, "the table", {"methods": {"NN1"}})
+    assert (study.read_bytes(), freshness.provenance_path(study).read_bytes()) == before
+    assert sorted(p.name for p in study.parent.iterdir()) == ["ci.csv", "ci.provenance.json"]
+    freshness.write_table(df, study, "the table", {"study": "ci"})
+    assert (pd.read_csv(study)["error"] == 0.0).all() and _prov(study) == {"study": "ci"}
+
+
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        (
+            "configfiles",
+            5,
+            "key 'configfiles' is 5 of type int; expected a list of configuration files",
+        ),
+        (
+            "configfiles",
+            "config/ablation.yaml",
+            "key 'configfiles' is 'config/ablation.yaml' of type str; expected a list of configuration files",
+        ),
+        (
+            "methods",
+            ["TGP"],
+            "key 'methods' is ['TGP'] of type list; expected a mapping of method name",
+        ),
+        ("methods", {"TGP": "x"}, "key 'methods.TGP' is 'x' of type str; expected a mapping"),
+        ("historical", True, "key 'historical' is True of type bool; expected a string"),
+    ],
+)
+@pytest.mark.parametrize("command", ["check", "verify"])
+def test_a_provenance_of_the_wrong_shape_is_one_line_and_exit_2(
+    study, capsys, command, key, value, words
+):
+    prov = _prov(study)
+    prov[key] = value
+    freshness.provenance_path(study).write_text(json.dumps(prov))
+    assert main([command, str(study)]) == 2
+    assert _one_error_line(capsys).startswith(f"error: {freshness.provenance_path(study)}: {words}")
+
+
+@pytest.mark.parametrize("command", ["check", "verify"])
+def test_check_and_verify_name_a_missing_provenance(study, capsys, command):
+    freshness.provenance_path(study).unlink()
+    assert main([command, str(study)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(f"error: {freshness.provenance_path(study)}: no such file")

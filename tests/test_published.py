@@ -275,3 +275,29 @@ def test_a_part_published_with_its_studys_configfiles_is_checked_against_them(
     methods = sorted(df.loc[df["source"] == "hsc", "method"].unique())
     assert sorted(line.split()[1].rstrip(":") for line in lines) == methods
     assert not any("unknown method" in line for line in lines)
+
+
+@pytest.mark.parametrize("configfiles", [[], ["--configfiles", "config/paper.yaml"]])
+def test_publish_with_an_unreadable_destination_provenance_writes_nothing(
+    tmp_path, capsys, configfiles
+):
+    """The destination's old provenance is read (for its configuration files and restamp records) before the
+    table is written: one that cannot be read is one line and exit 2, with the table and its provenance as
+    they were."""
+    from bsrbench.reporting import freshness
+    from bsrbench.reporting.published import main
+
+    src = tmp_path / "results" / "paper-hsc" / "aggregate" / "results.csv"
+    src.parent.mkdir(parents=True)
+    df = pd.read_csv(PUBLISHED)
+    df[df["source"] == "hsc"].to_csv(src, index=False)
+    dest = tmp_path / "published" / "paper-hsc.csv"
+    dest.parent.mkdir()
+    dest.write_text("the old table\n")
+    prov = freshness.provenance_path(dest)
+    prov.write_text('{"study": "paper-hsc", ')
+    assert main(["publish", str(src), str(dest), *configfiles]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {prov}: cannot read the provenance") and err.count("\n") == 1
+    assert dest.read_text() == "the old table\n" and prov.read_text() == '{"study": "paper-hsc", '
+    assert sorted(p.name for p in dest.parent.iterdir()) == [dest.name, prov.name]

@@ -16,9 +16,12 @@ published table ``reports/published/<study>.csv`` has a provenance file beside i
 the method's per-file digest map when its rows were made (or re-stamped), so that the check can name
 the file that changed. A table is *fresh* for a method when every row of the method has today's code fingerprint
 and the package versions of today's environment; ``historical`` turns a stale table into a reported, non-failing
-one (its README line says so).
+one (its README line says so). A provenance of another shape is refused, naming the key (:func:`check_provenance`);
+``check`` and ``verify`` need one. ``merge`` takes only current parts (no ``historical`` mark, a
+``code_fingerprint`` column) of one study (equal ``configfiles``), and writes nothing until all is read and checked.
 """
 
+import contextlib
 import json
 import random
 from datetime import UTC, datetime
@@ -50,12 +53,24 @@ VERSION_KEYS = ("python", "numpy", "scipy", "scikit-learn", "numba")
 RESTAMP_ROWS = 3
 
 
-def write_table(df, path, what):
-    """Write ``df`` as CSV to ``path`` atomically; DataFileError naming ``path`` and ``what`` it is (e.g. "the
-    merged table") if it cannot be written."""
+def write_table(df, path, what, provenance=None):
+    """Write ``df`` as CSV to ``path`` atomically, with ``provenance`` (a dict) as its provenance file when given:
+    both are written to temporary files first and renamed only when both are complete, so that a failure leaves
+    neither half-done. DataFileError naming ``path`` and ``what`` it is (e.g. "the merged table") if it cannot be
+    written (checked before anything is written where it can be: a folder in the way)."""
+    paths = [Path(path)] + ([provenance_path(path)] if provenance is not None else [])
+    for p in paths:
+        if p.is_dir():
+            raise DataFileError(p, f"cannot write {what}: a folder of that name is in the way")
     try:
-        with atomic_path(path) as tmp:
+        with contextlib.ExitStack() as stack:
+            # the provenance's context is entered last, so it is renamed first: the table, renamed last, is
+            # only replaced when its provenance is in place
+            tmp = stack.enter_context(atomic_path(path))
             df.to_csv(tmp, index=False)
+            if provenance is not None:
+                tmp_prov = stack.enter_context(atomic_path(provenance_path(path)))
+                tmp_prov.write_text(_provenance_text(provenance), encoding="utf-8")
     except OSError as exc:
         raise DataFileError(path, f"cannot write {what} ({exc.strerror or exc})") from None
 
@@ -76,11 +91,18 @@ def is_derived(table):
     return study_name(table).endswith(("-comparisons", "-verdict"))
 
 
-def read_provenance(table):
-    """The provenance of ``table`` (a dict; ``{}`` without a provenance file). DataFileError naming the file when
-    it is not a JSON object."""
+def read_provenance(table, required=False):
+    """The provenance of ``table`` (a dict; ``{}`` without a provenance file, unless ``required``). DataFileError
+    naming the file when it is missing but ``required``, not a JSON object or not of the shape of the module
+    docstring (:func:`check_provenance`)."""
     path = provenance_path(table)
     if not path.exists():
+        if required:
+            raise DataFileError(
+                path,
+                f"no such file; expected the provenance of {table} beside it (written by publish, merge or "
+                "restamp): its study's configuration files and its methods' code",
+            )
         return {}
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -88,14 +110,63 @@ def read_provenance(table):
         raise DataFileError(
             path, f"cannot read the provenance ({exc}); expected a JSON object"
         ) from None
+    return check_provenance(data, path)
+
+
+def _shape_error(path, key, value, expected):
+    text = repr(value)
+    text = text if len(text) <= 60 else text[:57] + "..."
+    return DataFileError(
+        path, f"key {key!r} is {text} of type {type(value).__name__}; expected {expected}"
+    )
+
+
+def check_provenance(data, path):
+    """``data`` (a provenance read from ``path``) if it has the shape of the module docstring; DataFileError naming
+    ``path``, the key, the value's type and what was expected if not."""
     if not isinstance(data, dict):
         raise DataFileError(path, "expected a JSON object (study, methods, optionally historical)")
+    for key in ("study", "historical"):
+        if key in data and not isinstance(data[key], str):
+            what = "the study's name" if key == "study" else "the reason the table is kept as it is"
+            raise _shape_error(path, key, data[key], f"a string ({what})")
+    files = data.get("configfiles")
+    if "configfiles" in data and not (
+        isinstance(files, list) and all(isinstance(f, str) for f in files)
+    ):
+        raise _shape_error(
+            path,
+            "configfiles",
+            files,
+            'a list of configuration files (e.g. ["config/ablation.yaml"])',
+        )
+    methods = data.get("methods")
+    if "methods" in data and not isinstance(methods, dict):
+        raise _shape_error(
+            path, "methods", methods, "a mapping of method name to its code's record"
+        )
+    for m, entry in (methods or {}).items():
+        if not isinstance(entry, dict):
+            raise _shape_error(
+                path,
+                f"methods.{m}",
+                entry,
+                "a mapping (code_fingerprint, files, git_commit, date, optionally restamped)",
+            )
+        for key in ("files", "restamped"):
+            if entry.get(key) is not None and not isinstance(entry[key], dict):
+                what = "{file: sha256}" if key == "files" else "the record of restamp"
+                raise _shape_error(path, f"methods.{m}.{key}", entry[key], f"a mapping ({what})")
     return data
+
+
+def _provenance_text(data):
+    return json.dumps(data, indent=1, sort_keys=True) + "\n"
 
 
 def write_provenance(table, data):
     with atomic_path(provenance_path(table)) as tmp:
-        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        tmp.write_text(_provenance_text(data), encoding="utf-8")
 
 
 def read_table(table):
@@ -158,7 +229,7 @@ def check_table(table, *, digests=None):
     already computed."""
     name = str(table)
     df = read_table(table)  # DataFileError naming the table: bad input, not a stale table
-    prov = read_provenance(table)
+    prov = read_provenance(table, required=True)
     if prov.get("historical"):
         return [f"{name}: historical: {prov['historical']}"], False
     files = configfiles(table, prov)
@@ -396,7 +467,7 @@ def _known_methods(table, df, registry, files):
 def verify(table, k, seed=0, *, log=print, features_folder="results/features"):
     """Rerun ``k`` random rows of ``table`` with today's code and print one verdict per row; True if all equal."""
     df = read_table(table)
-    files = configfiles(table)
+    files = configfiles(table, read_provenance(table, required=True))
     config = study_config(files)
     _known_methods(table, df, study_registry(config, " + ".join(files)), files)
     ok = True
@@ -465,9 +536,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="result
         }
         log(f"{table} {m}: restamped ({len(rerun)} rows rerun, largest difference {worst:.3g})")
     if any(ok for ok, _ in out.values()):
-        with atomic_path(table) as tmp:
-            df.to_csv(tmp, index=False)
-        write_provenance(table, prov)
+        write_table(df, table, "the restamped table", prov)
     return out
 
 
@@ -493,10 +562,18 @@ def method_provenance(df, registry, now=None):
     return out
 
 
-def write_table_provenance(table, df, files=None):
-    """Write the provenance file of a newly published table (no ``historical`` mark); ``files``: the study's
-    configuration files (default: those of the table's provenance, else ``config/<study>.yaml``)."""
-    files = files or configfiles(table)
+def table_provenance(table, df, files=None, records=None):
+    """The provenance of a newly published table ``table`` of rows ``df`` (no ``historical`` mark); ``files``: the
+    study's configuration files (default: those of the table's provenance, else ``config/<study>.yaml``).
+    ``records``: provenances whose ``restamped`` records carry over (default: the table's own, as it is before
+    it is replaced): a method keeps the newest record made for the fingerprint all its rows have. Reads
+    everything it needs, the table's old provenance too (DataFileError naming one that cannot be read); writes
+    nothing."""
+    own = read_provenance(
+        table
+    )  # read even when replaced: one that cannot be read is refused, before writing
+    records = [own] if records is None else records
+    files = files or configfiles(table, own)
     try:
         now = today(study_registry(study_config(files), " + ".join(files)))
     except (
@@ -504,30 +581,66 @@ def write_table_provenance(table, df, files=None):
     ):  # an overlay study not yet named in its provenance: no digests, the check says so
         now = {}
     methods = method_provenance(df, None, now)
-    try:
-        before = read_provenance(table).get("methods") or {}
-    except DataFileError:
-        before = {}
     for m, entry in methods.items():
         # a re-stamped method keeps the record of its rerun rows while its rows keep that fingerprint
-        old = before.get(m) or {}
-        if old.get("restamped") and old.get("code_fingerprint") == entry["code_fingerprint"]:
+        made = [
+            old
+            for prov in records
+            for old in [(prov.get("methods") or {}).get(m) or {}]
+            if old.get("restamped") and old.get("code_fingerprint") == entry["code_fingerprint"]
+        ]
+        if made:
+            old = max(made, key=lambda e: str(e.get("date") or ""))
             entry["restamped"] = old["restamped"]
             entry["files"] = entry["files"] or old.get("files")
-    write_provenance(table, {"study": study_name(table), "configfiles": files, "methods": methods})
+    return {"study": study_name(table), "configfiles": files, "methods": methods}
+
+
+def write_table_provenance(table, df, files=None):
+    """Write the provenance of a newly published table (:func:`table_provenance`)."""
+    write_provenance(table, table_provenance(table, df, files))
+
+
+def read_part(part):
+    """``(rows, provenance, configfiles)`` of a part to merge; InputError naming the part (or its provenance
+    file) when it is historical, has no provenance file or no ``code_fingerprint`` column: a merged table must be
+    of current parts of one study, each row with its code's fingerprint."""
+    df = read_table(part)
+    prov = read_provenance(part, required=True)
+    if "historical" in prov:
+        raise InputError(
+            f"{part}: historical (the 'historical' mark of {provenance_path(part)}); a merge needs current "
+            "parts: regenerate it, or remove the mark from its provenance deliberately"
+        )
+    if "code_fingerprint" not in df.columns:
+        raise DataFileError(
+            part,
+            "no column 'code_fingerprint' (rows made before the code fingerprints); a merge needs parts whose "
+            "rows carry their code's fingerprint: restamp it first",
+        )
+    return df, prov, configfiles(part, prov)
 
 
 def merge(parts, dest):
     """Merge published tables of parts of one study into ``dest``: one row per job key, the newest row
     (``written_at``) where parts overlap; two different rows of one key and equal age is an InputError naming the
-    key. Writes ``dest`` and its provenance; returns the merged DataFrame."""
-    frames = []
+    key. The parts must be current (:func:`read_part`) and of one study (equal ``configfiles``). Reads and checks
+    everything first, then writes ``dest`` and its provenance (configfiles of the parts, the parts' restamp
+    records where they hold, :func:`table_provenance`) together; returns the merged DataFrame."""
+    frames, provs, files = [], [], None
     for p in parts:
-        d = read_table(p)
+        d, prov, f = read_part(p)
+        if files is not None and f != files:
+            raise InputError(
+                f"{parts[0]} and {p} are parts of different studies: configfiles {files} and {f}; expected "
+                "parts of one study (the same configuration files)"
+            )
+        files = f
         if "written_at" not in d.columns:
             d["written_at"] = None
         d["_part"] = str(p)
         frames.append(d)
+        provs.append(prov)
     df = pd.concat(frames, ignore_index=True)
     df["_age"] = pd.to_datetime(df["written_at"], utc=True, errors="coerce", format="ISO8601")
     df = df.sort_values("_age", kind="mergesort", na_position="first")
@@ -544,8 +657,8 @@ def merge(parts, dest):
     df = df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
     if not Path(dest).parent.is_dir():
         raise DataFileError(dest, "cannot write the merged table: its folder does not exist")
-    write_table(df, dest, "the merged table")
-    write_table_provenance(dest, df)
+    prov = table_provenance(dest, df, files, records=provs)
+    write_table(df, dest, "the merged table", prov)
     return df
 
 

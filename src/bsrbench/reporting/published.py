@@ -128,9 +128,10 @@ def publish(src, dest, study=None, configfiles=None):
                 "the configuration files the study was run with"
             )
     df = with_convergence_columns(df).sort_values(KEY_COLUMNS, kind="mergesort")
-    freshness.write_table(df, dest, "the published table")
-    # the provenance beside it: per method the fingerprint and digests the staleness check compares
-    freshness.write_table_provenance(dest, df, configfiles)
+    # the provenance beside it: per method the fingerprint and digests the staleness check compares; made (and
+    # the destination's old one read) before anything is written, and written together with the table
+    prov = freshness.table_provenance(dest, df, configfiles)
+    freshness.write_table(df, dest, "the published table", prov)
     return df
 
 
