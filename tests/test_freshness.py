@@ -459,3 +459,16 @@ def test_check_and_verify_name_a_missing_provenance(study, capsys, command):
     assert main([command, str(study)]) == 2
     err = _one_error_line(capsys)
     assert err.startswith(f"error: {freshness.provenance_path(study)}: no such file")
+
+
+def test_shift_names_the_file_without_rows_or_without_a_numeric_column(study, tmp_path, capsys):
+    empty = tmp_path / "empty.csv"
+    pd.read_csv(study).head(0).to_csv(empty, index=False)
+    assert main(["shift", str(study), str(empty)]) == 2
+    assert _one_error_line(capsys).startswith(f"error: {empty}: has no rows")
+    assert main(["shift", str(empty), str(study)]) == 2
+    assert _one_error_line(capsys).startswith(f"error: {empty}: has no rows")
+    assert main(["shift", str(study), str(study), "--column", "nosuch"]) == 2
+    assert _one_error_line(capsys).startswith(f"error: {study}: no column 'nosuch'")
+    assert main(["shift", str(study), str(study), "--column", "params"]) == 2
+    assert _one_error_line(capsys).startswith(f"error: {study}: column 'params' is not numeric")

@@ -686,6 +686,21 @@ def cell_shifts(old, new, column="error"):
 def shift_report(old_table, new_table, column="error", top=5):
     """Lines: the cells compared, the largest shift in standard errors and the ``top`` cells that moved most."""
     old, new = read_table(old_table), read_table(new_table)
+    for path, df in ((old_table, old), (new_table, new)):
+        if not len(df):
+            raise DataFileError(
+                path, "has no rows (only a header); expected a table of result rows"
+            )
+        if column not in df.columns:
+            raise DataFileError(
+                path, f"no column {column!r}; expected a numeric column for --column, such as error"
+            )
+        if not pd.api.types.is_numeric_dtype(df[column]):
+            raise DataFileError(
+                path,
+                f"column {column!r} is not numeric (e.g. {str(df[column].iloc[0])[:40]!r}); expected "
+                "a numeric column for --column, such as error",
+            )
     out = cell_shifts(old, new, column)
     cells = [c for c in KEY_COLUMNS if c != "seed"]
     n_old, n_new = (len(df.groupby(cells)) for df in (old, new))
