@@ -649,9 +649,8 @@ class _Job:
 
     def __init__(self, pid, conn, result_r, log=None):
         self.pid, self.conn, self.result_r, self.chunks = pid, conn, result_r, []
-        self.log = (
-            log  # the job's log file (absolute), where a worker that died says nothing itself
-        )
+        # the job's log file (absolute): a worker that died says nothing there itself
+        self.log = log
 
     def relay(self):
         """Read the worker's result pipe; at its end, reap the worker and send its result to the client. True when
