@@ -217,6 +217,15 @@ def test_bench_bsr_ab_help_and_a_malformed_size():
     assert "error: argument --sizes: '30-64': expected NxK, e.g. 30x64" in bad.stderr, bad.stderr
 
 
+def _as_at_a_terminal():
+    """SIGINT as a shell at a terminal has it: handled by default and not blocked. A test process may have it
+    ignored or blocked (inherited from whatever started it), and a child inherits that through exec."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def test_bin_study_interrupted_says_how_to_resume(tmp_path):
     """Ctrl-C (SIGINT to the terminal's process group) during `bin/study`: the finished jobs' files are kept, the
     last line says the run was interrupted and how to resume it, and the exit code is 130."""
@@ -242,6 +251,7 @@ def test_bin_study_interrupted_says_how_to_resume(tmp_path):
         text=True,
         start_new_session=True,
         env=dict(os.environ, BSRBENCH_NO_APT="1"),
+        preexec_fn=_as_at_a_terminal,
     )
     # interrupt when Snakemake reports its first finished job (read as it comes, so the pipe never fills)
     lines, finished = [], threading.Event()

@@ -556,8 +556,10 @@ def ping(job):
     ``job["params"]["sleep"]`` seconds, or raise if ``job["params"]["fail"]``."""
     params = job.get("params", {})
     print(f"ping from pid {os.getpid()}", file=sys.stderr)
-    if params.get("pid_file"):
-        Path(params["pid_file"]).write_text(str(os.getpid()))
+    if params.get("pid_file"):  # written whole (a rename), so that a reader never sees it empty
+        tmp = Path(f"{params['pid_file']}.{os.getpid()}.tmp")
+        tmp.write_text(str(os.getpid()))
+        tmp.replace(params["pid_file"])
     time.sleep(float(params.get("sleep", 0)))
     if params.get("fail"):
         raise ValueError(f"ping asked to fail: {params['fail']}")
