@@ -64,6 +64,20 @@ def _ping(tmp_path, **params):
     }
 
 
+def _worker_pid(pid_file, timeout=60):
+    """The pid a ping job's worker writes to ``pid_file`` (by a rename, so never read half-written)."""
+    deadline = time.monotonic() + timeout
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return int(pid_file.read_text())
+
+
+def _ping_client(job, **popen):
+    """A client process that runs the ping ``job`` through the job server."""
+    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
+    return subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ), **popen)
+
+
 def test_job_runs_in_a_fork_of_one_server(server_socket, tmp_path):
     pids = []
     for _ in range(2):
@@ -111,12 +125,8 @@ def test_stale_server_is_replaced(server_socket, tmp_path):
 def test_killed_client_kills_its_worker(server_socket, tmp_path):
     pid_file = tmp_path / "worker.pid"
     job = _ping(tmp_path, sleep=60, pid_file=str(pid_file))
-    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
-    client = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ))
-    deadline = time.monotonic() + 60
-    while not pid_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    worker = int(pid_file.read_text())
+    client = _ping_client(job)
+    worker = _worker_pid(pid_file)
     client.send_signal(signal.SIGKILL)
     client.wait()
     deadline = time.monotonic() + 10
@@ -184,14 +194,8 @@ def test_worker_killed_from_outside_is_named_by_its_signal(server_socket, tmp_pa
     name, not a raw wait status."""
     pid_file = tmp_path / "worker.pid"
     job = _ping(tmp_path, sleep=60, pid_file=str(pid_file))
-    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
-    client = subprocess.Popen(
-        [sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True
-    )
-    deadline = time.monotonic() + 60
-    while not pid_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    os.kill(int(pid_file.read_text()), signal.SIGKILL)
+    client = _ping_client(job, stderr=subprocess.PIPE, text=True)
+    os.kill(_worker_pid(pid_file), signal.SIGKILL)
     _, err = client.communicate(timeout=60)
     assert client.returncode != 0
     assert "worker was killed by SIGKILL" in err and "status 9" not in err
@@ -219,10 +223,7 @@ def test_a_block_seeds_worker_killed_from_outside_says_why_in_the_blocks_log(
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 60
-    while not pid_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    os.kill(int(pid_file.read_text()), signal.SIGKILL)
+    os.kill(_worker_pid(pid_file), signal.SIGKILL)
     _, err = client.communicate(timeout=60)
     assert client.returncode != 0 and "see block.log" in err
     reason = next(line for line in err.splitlines() if "worker was killed by SIGKILL" in line)
@@ -252,14 +253,8 @@ def test_killed_server_kills_its_worker_and_the_client_runs_the_job_itself(serve
     pid_file = tmp_path / "worker.pid"
     job = _ping(tmp_path, sleep=5, pid_file=str(pid_file))
     (tmp_path / "out.txt").unlink()
-    code = f"from bsrbench import jobserver; jobserver.run('bsrbench.jobserver:ping', {job!r})"
-    client = subprocess.Popen(
-        [sys.executable, "-c", code], env=dict(os.environ), stderr=subprocess.PIPE, text=True
-    )
-    deadline = time.monotonic() + 60
-    while not pid_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.02)
-    worker = int(pid_file.read_text())
+    client = _ping_client(job, stderr=subprocess.PIPE, text=True)
+    worker = _worker_pid(pid_file)
     os.kill(server_pid, signal.SIGKILL)
     _wait_gone(worker, timeout=2)  # killed with its server, long before its 5 s sleep ends
     _, err = client.communicate(timeout=60)
