@@ -371,6 +371,23 @@ def test_merge_refuses_a_part_without_fingerprints(study, tmp_path, capsys):
     assert not dest.exists()
 
 
+def test_merge_refuses_a_part_twice_and_a_destination_not_csv(study, tmp_path, capsys):
+    df = pd.read_csv(study)
+    pa = _write_part(df.iloc[:2], tmp_path / "a.csv")
+    pb = _write_part(df.iloc[2:], tmp_path / "b.csv")
+    before = {p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert main(["merge", str(pa), str(pa), str(pb), str(tmp_path / "m.csv")]) == 2
+    assert (
+        _one_error_line(capsys)
+        == f"error: {pa}: given twice (also as {pa}); expected each part once"
+    )
+    assert main(["merge", str(pa), str(pb), str(freshness.provenance_path(pb))]) == 2
+    assert "expected a path ending in .csv" in _one_error_line(capsys)
+    assert {
+        p: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()
+    } == before  # nothing written
+
+
 def test_merge_carries_a_parts_restamp_record_while_the_merged_rows_have_its_fingerprint(
     study, tmp_path
 ):
@@ -439,6 +456,11 @@ def test_a_table_and_its_provenance_are_written_both_or_neither(study, tmp_path)
             "key 'methods' is ['TGP'] of type list; expected a mapping of method name",
         ),
         ("methods", {"TGP": "x"}, "key 'methods.TGP' is 'x' of type str; expected a mapping"),
+        (
+            "methods",
+            {"TGP": {"code_fingerprint": 7}},
+            "key 'methods.TGP.code_fingerprint' is 7 of type int; expected a string or a list of strings",
+        ),
         ("historical", True, "key 'historical' is True of type bool; expected a string"),
     ],
 )

@@ -153,6 +153,12 @@ def check_provenance(data, path):
                 entry,
                 "a mapping (code_fingerprint, files, git_commit, date, optionally restamped)",
             )
+        for key in ("code_fingerprint", "git_commit", "date"):
+            v = entry.get(key)
+            if v is not None and not (
+                isinstance(v, str) or (isinstance(v, list) and all(isinstance(x, str) for x in v))
+            ):
+                raise _shape_error(path, f"methods.{m}.{key}", v, "a string or a list of strings")
         for key in ("files", "restamped"):
             if entry.get(key) is not None and not isinstance(entry[key], dict):
                 what = "{file: sha256}" if key == "files" else "the record of restamp"
@@ -627,6 +633,14 @@ def merge(parts, dest):
     key. The parts must be current (:func:`read_part`) and of one study (equal ``configfiles``). Reads and checks
     everything first, then writes ``dest`` and its provenance (configfiles of the parts, the parts' restamp
     records where they hold, :func:`table_provenance`) together; returns the merged DataFrame."""
+    if Path(dest).suffix != ".csv":
+        raise DataFileError(dest, "cannot write the merged table: expected a path ending in .csv")
+    seen = {}
+    for p in parts:
+        real = Path(p).resolve()  # the destination may be a part: a table grows by a new part
+        if real in seen:
+            raise InputError(f"{p}: given twice (also as {seen[real]}); expected each part once")
+        seen[real] = p
     frames, provs, files = [], [], None
     for p in parts:
         d, prov, f = read_part(p)
