@@ -557,9 +557,10 @@ def ping(job):
     params = job.get("params", {})
     print(f"ping from pid {os.getpid()}", file=sys.stderr)
     if params.get("pid_file"):  # written whole (a rename), so that a reader never sees it empty
-        tmp = Path(f"{params['pid_file']}.{os.getpid()}.tmp")
-        tmp.write_text(str(os.getpid()))
-        tmp.replace(params["pid_file"])
+        from .io import atomic_path  # in a worker: preloaded by the server
+
+        with atomic_path(params["pid_file"]) as tmp:
+            tmp.write_text(str(os.getpid()))
     time.sleep(float(params.get("sleep", 0)))
     if params.get("fail"):
         raise ValueError(f"ping asked to fail: {params['fail']}")

@@ -575,9 +575,8 @@ def table_provenance(table, df, files=None, records=None):
     it is replaced): a method keeps the newest record made for the fingerprint all its rows have. Reads
     everything it needs, the table's old provenance too (DataFileError naming one that cannot be read); writes
     nothing."""
-    own = read_provenance(
-        table
-    )  # read even when replaced: one that cannot be read is refused, before writing
+    # read even when it is replaced: one that cannot be read is refused, before anything is written
+    own = read_provenance(table)
     records = [own] if records is None else records
     files = files or configfiles(table, own)
     try:
@@ -635,14 +634,13 @@ def merge(parts, dest):
     records where they hold, :func:`table_provenance`) together; returns the merged DataFrame."""
     if Path(dest).suffix != ".csv":
         raise DataFileError(dest, "cannot write the merged table: expected a path ending in .csv")
-    seen = {}
+    seen = {}  # the destination may be a part: a table grows by a new part
+    frames, provs, files = [], [], None
     for p in parts:
-        real = Path(p).resolve()  # the destination may be a part: a table grows by a new part
+        real = Path(p).resolve()
         if real in seen:
             raise InputError(f"{p}: given twice (also as {seen[real]}); expected each part once")
         seen[real] = p
-    frames, provs, files = [], [], None
-    for p in parts:
         d, prov, f = read_part(p)
         if files is not None and f != files:
             raise InputError(
@@ -676,17 +674,30 @@ def merge(parts, dest):
     return df
 
 
-def cell_shifts(old, new, column="error"):
+def cell_shifts(old, new, column="error", names=("the old table", "the new table")):
     """How far each cell's mean of ``column`` moved from table ``old`` to table ``new`` (a regeneration), in units
     of the standard error of the old cell's mean (std over its seeds / sqrt(seeds)): one row per cell (the key
-    columns but the seed) that both tables hold, largest |z| first."""
+    columns but the seed) that both tables hold, largest |z| first. A table without rows, without the cells' key
+    columns or without a numeric ``column`` is a DataFileError naming it (``names``: the tables' files)."""
     cells = [c for c in KEY_COLUMNS if c != "seed"]
-    for name, df in (("old", old), ("new", new)):
-        missing = sorted(set(cells + [column]) - set(df.columns))
+    for name, df in zip(names, (old, new)):
+        if not len(df):
+            raise DataFileError(
+                name, "has no rows (only a header); expected a table of result rows"
+            )
+        if column not in df.columns:
+            raise DataFileError(
+                name, f"no column {column!r}; expected a numeric column for --column, such as error"
+            )
+        missing = sorted(set(cells) - set(df.columns))
         if missing:
-            raise InputError(f"the {name} table has no columns {missing}")
+            raise DataFileError(name, f"no columns {missing}; expected a table of result rows")
         if not pd.api.types.is_numeric_dtype(df[column]):
-            raise InputError(f"the {name} table's column {column!r} is not numeric")
+            raise DataFileError(
+                name,
+                f"column {column!r} is not numeric (e.g. {str(df[column].iloc[0])[:40]!r}); expected "
+                "a numeric column for --column, such as error",
+            )
     # count: the seeds with a value (NaN left out), so that a cell with a missing or NaN seed is named
     a = old.groupby(cells)[column].agg(["mean", "std", "count"])
     b = new.groupby(cells)[column].agg(["mean", "count"])
@@ -700,22 +711,7 @@ def cell_shifts(old, new, column="error"):
 def shift_report(old_table, new_table, column="error", top=5):
     """Lines: the cells compared, the largest shift in standard errors and the ``top`` cells that moved most."""
     old, new = read_table(old_table), read_table(new_table)
-    for path, df in ((old_table, old), (new_table, new)):
-        if not len(df):
-            raise DataFileError(
-                path, "has no rows (only a header); expected a table of result rows"
-            )
-        if column not in df.columns:
-            raise DataFileError(
-                path, f"no column {column!r}; expected a numeric column for --column, such as error"
-            )
-        if not pd.api.types.is_numeric_dtype(df[column]):
-            raise DataFileError(
-                path,
-                f"column {column!r} is not numeric (e.g. {str(df[column].iloc[0])[:40]!r}); expected "
-                "a numeric column for --column, such as error",
-            )
-    out = cell_shifts(old, new, column)
+    out = cell_shifts(old, new, column, names=(old_table, new_table))
     cells = [c for c in KEY_COLUMNS if c != "seed"]
     n_old, n_new = (len(df.groupby(cells)) for df in (old, new))
     lines = [
