@@ -84,7 +84,6 @@ localrules:
     report_mechanisms,
     report_today,
     plot_pit,
-    pool_chains,
     report_pdf,
     download_cmu_asf,
     download_cmu_amc,

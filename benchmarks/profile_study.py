@@ -7,7 +7,7 @@ Reads what a finished run leaves behind, nothing else:
   the seconds spent inside the estimator (``fit_seconds + predict_seconds``, ``cv_seconds``), timed by the job;
 - optionally Snakemake's own log (``--log``): the run's wall time, from its first to its last time stamp.
 
-For each kind of job (PM fit, PM chain, PM CV, each baseline's fits and CV, features, the rest) it prints the
+For each kind of job (PM fit, PM chain, PM chains, PM CV, each baseline's fits and CV, features, the rest) it prints the
 number of jobs, the summed job wall time, the summed model time, and their difference (job overhead: starting
 the rule's process, handing the job to the job server, loading the features, writing the outputs). With the
 run's wall time W and c cores, c W minus the summed job wall time is the time no job was running on a core
@@ -70,13 +70,17 @@ def model_seconds(results, rel):
     return sum(float(row["fit_seconds"]) + float(row["predict_seconds"]) for row in rows)
 
 
-def kind_of(rel):
-    """('PM fit' | 'PM chain' | 'PM CV' | '<method> fit' | ...) for a benchmark file under results/{study}/benchmarks."""
+def kind_of(rel, results=None):
+    """('PM fit' | 'PM chain' | 'PM chains' | 'PM CV' | '<method> fit' | ...) for a benchmark file under
+    results/{study}/benchmarks: 'chain' for a job of one chain, 'chains' for a job that runs a split's chains and
+    pools them (its split has a folder of chain files under ``results``)."""
     parts = rel.parts
     if parts[0] in ("cv", "fit"):
         method = parts[4]
         family = "PM" if method.startswith("PM") else method
         what = "CV" if parts[0] == "cv" else ("chain" if rel.stem.startswith("chain") else "fit")
+        if what == "fit" and results is not None and (results / rel.with_suffix("")).is_dir():
+            what = "chains"
         return f"{family} {what}"
     return parts[0]
 
@@ -107,7 +111,7 @@ def main():
     rows = defaultdict(lambda: [0, 0.0, 0.0])
     for tsv in sorted(bench.rglob("*.tsv")):
         rel = tsv.relative_to(bench)
-        kind = kind_of(rel)
+        kind = kind_of(rel, args.results)
         acc = rows[kind]
         acc[0] += 1
         acc[1] += job_seconds(tsv)

@@ -497,7 +497,7 @@ def test_another_study_touches_nothing_of_this_one(ci_run, args):
 
 
 #: Rules submitted as cluster jobs under profiles/slurm; every other rule is in the Snakefile's `localrules`.
-CLUSTER_RULES = {"fit", "fit_chain", "cv", "features_codebook", "features_mocap"}
+CLUSTER_RULES = {"fit", "cv", "features_codebook", "features_mocap"}
 LOCAL_RULES = {
     "all",
     "report_today",
@@ -516,7 +516,6 @@ LOCAL_RULES = {
     "plot_gxy",
     "report_why_pm",
     "report_mechanisms",
-    "pool_chains",
     "plot_subjective",
     "report_pdf",
     "features_mat",
@@ -530,6 +529,20 @@ def test_every_rule_is_local_or_a_cluster_job():
     res = smk("--list-rules")
     assert res.returncode == 0, res.stderr[-2000:]
     assert set(res.stdout.split()) == CLUSTER_RULES | LOCAL_RULES
+
+
+@pytest.mark.parametrize(
+    "seeds_per_job, chain_rules",
+    [("null", {"fit_chains2", "fit_chains4"}), ("1", {"fit_chain", "pool_chains"})],
+)
+def test_chained_methods_run_in_one_job_per_split_or_per_chain(seeds_per_job, chain_rules):
+    """Chained methods (here with 2 and 4 chains): one job per split, a rule per chain count (cluster jobs), or a
+    job per chain (a cluster job) and one that pools them (local) with seeds_per_job 1; no other rule changes."""
+    res = smk("--list-rules", "--configfile", "config/ablation.yaml", "config/ablation-ci.yaml",
+              "--config", f"seeds_per_job={seeds_per_job}", "run=[PM,PMK16,PMj3,PMK8s5000text]")  # fmt: skip
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "not present" not in res.stderr, res.stderr
+    assert set(res.stdout.split()) - CLUSTER_RULES - LOCAL_RULES == chain_rules
 
 
 def test_slurm_profile_runs_the_quick_rules_locally(ci_run):

@@ -1143,6 +1143,15 @@ class Study:
         """MCMC chains per split of a method (methods.<M>.chains, default 1)."""
         return int(self.method(name).get("chains", 1))
 
+    def chain_groups(self):
+        """{C: [method, ...]}: the study's methods (``run``) with C > 1 chains per split, by C (a rule's outputs are
+        fixed, so the job that runs a split's chains is one rule per C)."""
+        out = {}
+        for name in self.run:
+            if self.n_chains(name) > 1:
+                out.setdefault(self.n_chains(name), []).append(name)
+        return dict(sorted(out.items()))
+
     def method_regex(self, chained):
         """Wildcard regex of the method names run with several chains (chained=True) or with one."""
         names = [m for m in self.config["methods"] if (self.n_chains(m) > 1) == chained]

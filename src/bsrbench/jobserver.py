@@ -1,8 +1,8 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
 The study's fits run in thousands of short jobs (one per seed, or one per block of seeds that runs the job of each
-seed in turn, :func:`run_block`), and most fits compute for well under a second, while a fresh
-interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
+seed in turn, or one per split that runs its chains and pools them, :func:`run_block`), and most fits compute for
+well under a second, while a fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
 (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
 module's ``PRELOAD`` and the ``warm_up()`` of its modules, see :func:`_preload`) and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
@@ -243,6 +243,42 @@ def block_job_params(seeds, per_seed_input=None):
     return job
 
 
+def chains_job_params(n_chains, chain_settings, chain_target):
+    """A Snakemake ``params`` function for a job that runs the ``n_chains`` chains of one split and pools them: the
+    JSON ``{"block": [chain 0, ..., chain C-1, pool]}`` for :func:`run_block`. Chain c's step is the job that a
+    one-chain rule would run (target ``chain_target``, its settings ``chain_settings`` evaluated on the wildcards,
+    as :func:`job_settings` gives them; input: the job's ``features``, ``cv`` and ``code``; output ``chain``: the
+    job's ``chains`` file c; wildcards with ``chain``); the pooling step is the job of the one-split pooling rule
+    (the block's own target and settings; input: ``features``, ``cv`` and the ``chains`` files; output: ``row``,
+    ``predictions``)."""
+    import json
+
+    def job(wildcards, input, output):
+        w, inp, out = _named(wildcards), _named(input), _named(output)
+        settings = json.loads(chain_settings(wildcards))
+        steps = [
+            {
+                "target": chain_target,
+                "params": settings,
+                "input": {k: inp[k] for k in ("features", "cv", "code") if k in inp},
+                "output": {"chain": out["chains"][c]},
+                "wildcards": {**w, "chain": str(c)},
+            }
+            for c in range(n_chains)
+        ]
+        pool_input = {k: inp[k] for k in ("features", "cv") if k in inp}
+        steps.append(
+            {
+                "input": {**pool_input, "chains": list(out["chains"])},
+                "output": {"row": out["row"], "predictions": out["predictions"]},
+                "wildcards": w,
+            }
+        )
+        return json.dumps({"block": steps}, sort_keys=True)
+
+    return job
+
+
 def job_settings(params):
     """A Snakemake ``params`` function: ``params`` (names to values or to functions of the wildcards) evaluated,
     as JSON: the job's ``params``. It depends on the wildcards only, so Snakemake's params trigger records it
@@ -334,33 +370,47 @@ def run(target, job, *, use_server=True):
     run_local(target, job)
 
 
+def _step(spec):
+    """A step of a block job, as its messages name it: ``seed 3``, or ``seed 3 chain 1`` for one chain of a split."""
+    w = spec["wildcards"]
+    return f"seed {w['seed']}" + (f" chain {w['chain']}" if "chain" in w else "")
+
+
 def run_block(target, specs, *, params, threads, log, use_server=True):
-    """Run the jobs of a block of seeds (:func:`block_job_params`) one after the other, each as :func:`run` runs the
-    job of one seed, all logging to the block's ``log`` (emptied first). Stops at the first seed that fails, with
-    a message naming it (SystemExit); Snakemake then removes the outputs of the whole block, and reruns it whole."""
+    """Run the steps of a block job one after the other, each as :func:`run` runs a one-step job, all logging to
+    the block's ``log`` (emptied first). A step is the job of one seed (:func:`block_job_params`) or one chain, or
+    the pooling, of a split (:func:`chains_job_params`); a step's own ``target`` and ``params``, where it has them,
+    replace the block's. Stops at the first step that fails, with a message naming it (SystemExit); Snakemake then
+    removes the outputs of the whole block, and reruns it whole."""
     import traceback
 
     if log:
         open(log[0], "w").close()
     seeds = [spec["wildcards"]["seed"] for spec in specs]
+    what = (
+        f"the block of seeds {seeds[0]}-{seeds[-1]}"
+        if len(set(seeds)) > 1 or len(specs) == 1
+        else f"the job of seed {seeds[0]}'s chains and pooling"
+    )
     for spec in specs:
-        seed = spec["wildcards"]["seed"]
-        job = dict(spec, params=params, threads=threads, log=log, log_append=True)
+        step, step_target = _step(spec), spec.get("target", target)
+        job = dict(
+            spec, params=spec.get("params", params), threads=threads, log=log, log_append=True
+        )
+        job.pop("target", None)
         if log:
             with open(log[0], "a") as f:
-                print(f"--- seed {seed} ---", file=f)
+                print(f"--- {step} ---", file=f)
         stderr = sys.stderr
         try:
-            run(target, job, use_server=use_server)
+            run(step_target, job, use_server=use_server)
         except (Exception, SystemExit) as exc:
             # raised in this process (run_local): its traceback into the log
             if not isinstance(exc, SystemExit):
                 traceback.print_exc()
                 exc = f"{type(exc).__name__}: {exc}"
             where = f"; see {log[0]}" if log else ""
-            raise SystemExit(
-                f"{target}: seed {seed} of the block of seeds {seeds[0]}-{seeds[-1]} failed{where}:\n{exc}"
-            ) from None
+            raise SystemExit(f"{step_target}: {step} of {what} failed{where}:\n{exc}") from None
         finally:
             # run in this process, the job's stderr was its log: the block's message goes to the command's
             if sys.stderr is not stderr:

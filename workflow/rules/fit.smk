@@ -156,53 +156,95 @@ else:
                 JOB.format(target="bsrbench.jobs:fit")
 
 
-# `chains: C` > 1: one job per chain, pooled per split.
-rule fit_chain:
-    input:
-        features="results/features/{source}/{activity}.npz",
-        cv=cv_input,
-        code=estimator_sources,
-    output:
-        chain=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.npz",
-    log:
-        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.log",
-    benchmark:
-        f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
-    wildcard_constraints:
-        method=method_regex(chained=True),
-    conda:
-        "../envs/bsrbench.yaml"
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=60,
-    params:
-        settings=jobserver.job_settings(CHAIN_PARAMS),
-        job=jobserver.job_params(),
-    shell:
-        JOB.format(target="bsrbench.jobs:fit_chain")
+# `chains: C` > 1: one job per split that runs its C chains (each a step as rule fit_chain runs it) and pools them,
+# or, with seeds_per_job 1, one job per chain and one that pools them (rules fit_chain, pool_chains).
+SEED_DIR = f"{RESULTS}/fit/{SPLIT}/seed{{seed}}"
+if PER_SEED:
 
+    # quick: on the submit host under SLURM, like the Snakefile's other localrules
+    localrules:
+        pool_chains,
 
-rule pool_chains:
-    input:
-        features="results/features/{source}/{activity}.npz",
-        cv=cv_input,
-        chains=chain_inputs,
-    output:
-        row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
-        predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
-    log:
-        f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
-    wildcard_constraints:
-        method=method_regex(chained=True),
-    conda:
-        "../envs/bsrbench.yaml"
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    params:
-        settings=jobserver.job_settings(FIT_PARAMS),
-        job=jobserver.job_params(),
-    shell:
-        JOB.format(target="bsrbench.jobs:pool")
+    rule fit_chain:
+        input:
+            features="results/features/{source}/{activity}.npz",
+            cv=cv_input,
+            code=estimator_sources,
+        output:
+            chain=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.npz",
+        log:
+            f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.log",
+        benchmark:
+            f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
+        wildcard_constraints:
+            method=method_regex(chained=True),
+        conda:
+            "../envs/bsrbench.yaml"
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=60,
+        params:
+            settings=jobserver.job_settings(CHAIN_PARAMS),
+            job=jobserver.job_params(),
+        shell:
+            JOB.format(target="bsrbench.jobs:fit_chain")
+
+    rule pool_chains:
+        input:
+            features="results/features/{source}/{activity}.npz",
+            cv=cv_input,
+            chains=chain_inputs,
+        output:
+            row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
+            predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
+        log:
+            f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
+        wildcard_constraints:
+            method=method_regex(chained=True),
+        conda:
+            "../envs/bsrbench.yaml"
+        threads: 1
+        resources:
+            mem_mb=2000,
+            runtime=10,
+        params:
+            settings=jobserver.job_settings(FIT_PARAMS),
+            job=jobserver.job_params(),
+        shell:
+            JOB.format(target="bsrbench.jobs:pool")
+
+else:
+    CHAIN_GROUPS = STUDY.chain_groups()
+    for n_chains, methods in CHAIN_GROUPS.items():
+
+        rule:
+            name:
+                "fit_chains" if len(CHAIN_GROUPS) == 1 else f"fit_chains{n_chains}"
+            input:
+                features="results/features/{source}/{activity}.npz",
+                cv=cv_input,
+                code=estimator_sources,
+            output:
+                chains=[f"{SEED_DIR}/chain{c}.npz" for c in range(n_chains)],
+                row=f"{SEED_DIR}.json",
+                predictions=f"{SEED_DIR}.npz",
+            log:
+                f"{LOGS}/fit/{SPLIT}/seed{{seed}}.log",
+            benchmark:
+                f"{RESULTS}/benchmarks/fit/{SPLIT}/seed{{seed}}.tsv"
+            wildcard_constraints:
+                method="|".join(methods),
+            conda:
+                "../envs/bsrbench.yaml"
+            threads: 1
+            resources:
+                mem_mb=2000,
+                runtime=60 * n_chains + 10,
+            params:
+                settings=jobserver.job_settings(FIT_PARAMS),
+                job=jobserver.chains_job_params(
+                    n_chains, jobserver.job_settings(CHAIN_PARAMS), "bsrbench.jobs:fit_chain"
+                ),
+            shell:
+                JOB.format(target="bsrbench.jobs:pool")
