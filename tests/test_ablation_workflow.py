@@ -19,7 +19,7 @@ from bsrbench.runs import chain_seed
 ABLATION = ("--configfile", "config/ablation.yaml", "config/ablation-ci.yaml")
 
 
-@pytest.mark.slow  # a DAG of 7,130 jobs: about a minute on an idle machine
+@pytest.mark.slow  # a DAG of about 1,500 jobs
 def test_ablation_dry_run_counts_one_job_per_split(tmp_path):
     res = smk("-n", "--cores", "2", "--configfile", "config/ablation.yaml", cwd=copy_tree(tmp_path))
     out = res.stdout + res.stderr
@@ -56,6 +56,45 @@ def test_goal_overlay_runs_the_chosen_variants_on_the_paper_protocols_splits(tmp
     assert int(counts["fit_chains"]) == 2 * splits and "pool_chains" not in counts
     assert int(counts["fit"]) == cells  # 1-NN: one job of the 10 seeds per cell
     assert "results/paper-goal/fit/random/hsc/" in out and "seed9" in out and "seed100" not in out
+
+
+@pytest.mark.slow  # two runs of the CI-scale ablation
+def test_a_job_per_chain_and_a_job_per_split_give_the_same_chains_and_rows(tmp_path):
+    """seeds_per_job 1 (a job per chain, one that pools) and the default (one job per split) on the same machine:
+    the chain files, the rows and the pooled predictions equal but for their timings."""
+    runs = {}
+    for k in ("1", "null"):
+        (tmp_path / k).mkdir()
+        work = copy_tree(tmp_path / k)
+        res = smk("results/ablation-ci/aggregate/results.csv", "--cores", "2", *ABLATION,
+                  "--config", f"seeds_per_job={k}", cwd=work, timeout=900)  # fmt: skip
+        assert res.returncode == 0, (res.stdout + res.stderr)[-4000:]
+        runs[k] = work / "results" / "ablation-ci" / "fit"
+    a, b = runs["1"], runs["null"]
+    chains = sorted(p.relative_to(a) for p in a.rglob("chain*.npz"))
+    assert len(chains) == 3 * 2  # 3 PM variants x 2 chains
+    timing = ("fit_seconds", "predict_seconds", "cv_seconds", "written_at")
+
+    def untimed(path):
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files if k not in timing}
+
+    for rel in chains:
+        ca, cb = untimed(a / rel), untimed(b / rel)
+        assert ca.keys() == cb.keys() and "trace_g_xy" in ca, rel
+        for key in ca:
+            np.testing.assert_array_equal(ca[key], cb[key], err_msg=f"{rel}: {key}")
+    rows = sorted(p.relative_to(a) for p in a.rglob("seed*.json"))
+    assert len(rows) == 5
+    for rel in rows:
+        ra, rb = (json.loads((d / rel).read_text()) for d in (a, b))
+        assert {k: v for k, v in ra.items() if k not in timing} == {
+            k: v for k, v in rb.items() if k not in timing
+        }, rel
+        pa, pb = untimed(a / rel.with_suffix(".npz")), untimed(b / rel.with_suffix(".npz"))
+        assert pa.keys() == pb.keys() and "y_pred" in pa, rel
+        for key in pa:
+            np.testing.assert_array_equal(pa[key], pb[key], err_msg=f"{rel}: {key}")
 
 
 @pytest.fixture(scope="module")
