@@ -215,13 +215,15 @@ def test_configfile_args_reads_snakemakes_forms():
     assert configfile_args(["--config", "study=x", "all"]) == []
 
 
-@pytest.mark.parametrize("entry", ["foo", "=1", "study", "1x=2", "x y=1"])
+@pytest.mark.parametrize("entry", ["foo", "=1", "study", "1x=2", "x y=1", "a=1", "ab-=1"])
 def test_study_names_a_config_entry_that_is_not_key_value(entry):
+    """Keys as Snakemake's command line takes them: one character, or one ending in -, is refused there too."""
     rc, out = run([str(ROOT / "bin" / "study"), "-n", "--config", "n_seeds=1", entry], ROOT)
     assert rc == 2
     assert_one_line(
         out,
-        f"[study] --config {entry!r}: expected KEY=VALUE (KEY: letters, digits, _ or -, from a letter or _), for example --config study=mine "
+        f"[study] --config {entry!r}: expected KEY=VALUE (KEY: at least two characters, letters, digits, _ or -, "
+        "from a letter or _, ending in a letter, digit or _), for example --config study=mine "
         "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)",
     )
 

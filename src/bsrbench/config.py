@@ -73,7 +73,8 @@ def config_arg_problem(entry):
     key, eq, _ = entry.partition("=")
     if not eq or not _CONFIG_KEY.match(key):
         return (
-            f"--config {entry!r}: expected KEY=VALUE (KEY: letters, digits, _ or -, from a letter or _), for example --config study=mine "
+            f"--config {entry!r}: expected KEY=VALUE (KEY: at least two characters, letters, digits, _ or -, from "
+            "a letter or _, ending in a letter, digit or _), for example --config study=mine "
             "'study_activities={hsc: [golf], mocap: []}' (config/README.md lists the keys)"
         )
     return None
