@@ -371,6 +371,31 @@ def test_merge_refuses_a_part_without_fingerprints(study, tmp_path, capsys):
     assert not dest.exists()
 
 
+def test_merge_refuses_a_header_only_part_and_rows_its_provenance_does_not_list(
+    study, tmp_path, capsys
+):
+    df = pd.read_csv(study)
+    dest = tmp_path / "published" / "merged.csv"
+    empty = _write_part(df.iloc[:0], tmp_path / "empty.csv")
+    assert main(["merge", str(study), str(empty), str(dest)]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {empty}: has no rows (only a header); expected a published table of result rows"
+    )
+    part = _write_part(df.iloc[2:], tmp_path / "b.csv")
+    edited = pd.read_csv(part)
+    edited.loc[edited["method"] == "Ridge", "code_fingerprint"] = (
+        "f" * 64
+    )  # rows changed after publishing
+    edited.to_csv(part, index=False)
+    assert main(["merge", str(study), str(part), str(dest)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(
+        f"error: {part}: the rows of Ridge have code fingerprints ['ffffffffffff'], its "
+    )
+    assert "expected a part and its provenance written together" in err
+    assert not dest.exists() and not freshness.provenance_path(dest).exists()
+
+
 def test_merge_refuses_a_part_twice_and_a_destination_not_csv(study, tmp_path, capsys):
     df = pd.read_csv(study)
     pa = _write_part(df.iloc[:2], tmp_path / "a.csv")

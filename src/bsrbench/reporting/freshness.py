@@ -608,8 +608,9 @@ def write_table_provenance(table, df, files=None):
 
 def read_part(part):
     """``(rows, provenance, configfiles)`` of a part to merge; InputError naming the part (or its provenance
-    file) when it is historical, has no provenance file or no ``code_fingerprint`` column: a merged table must be
-    of current parts of one study, each row with its code's fingerprint."""
+    file) when it is historical, has no provenance file, no ``code_fingerprint`` column, no rows, or rows whose
+    fingerprint its provenance does not list for their method: a merged table must be of current parts of one
+    study, each row with its code's fingerprint."""
     df = read_table(part)
     prov = read_provenance(part, required=True)
     if "historical" in prov:
@@ -623,6 +624,21 @@ def read_part(part):
             "no column 'code_fingerprint' (rows made before the code fingerprints); a merge needs parts whose "
             "rows carry their code's fingerprint: restamp it first",
         )
+    if not len(df):
+        raise DataFileError(
+            part, "has no rows (only a header); expected a published table of result rows"
+        )
+    listed = prov.get("methods") or {}
+    for method, rows in df.groupby("method", sort=True):
+        have = sorted(set(rows["code_fingerprint"].dropna().astype(str)))
+        fps = (listed.get(method) or {}).get("code_fingerprint")
+        said = sorted({fps} if isinstance(fps, str) else set(fps or []))
+        if not set(have) <= set(said):
+            raise InputError(
+                f"{part}: the rows of {method} have code fingerprints {[f[:12] for f in have]}, its provenance "
+                f"({provenance_path(part)}) lists {[f[:12] for f in said]}; expected a part and its provenance "
+                "written together (publish it again)"
+            )
     return df, prov, configfiles(part, prov)
 
 
