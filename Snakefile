@@ -84,6 +84,7 @@ localrules:
     report_mechanisms,
     report_today,
     plot_pit,
+    pool_chains,
     report_pdf,
     download_cmu_asf,
     download_cmu_amc,

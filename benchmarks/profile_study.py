@@ -62,26 +62,34 @@ def model_seconds(results, rel):
             float(json.loads(s.with_suffix(".json").read_text())["cv_seconds"])
             for s in seed_stems(stem)
         )
-    if stem.name.startswith("chain"):
-        with np.load(stem.with_suffix(".npz"), allow_pickle=False) as z:
-            row = json.loads(str(z["row"])) if "row" in z.files else {}
-        return float(row.get("fit_seconds", np.nan)) + float(row.get("predict_seconds", np.nan))
+    if stem.name.startswith(
+        "chain"
+    ):  # a job of one chain (chain3.tsv) or of a split's chains (chains.tsv)
+        files = (
+            sorted(stem.parent.glob("chain[0-9]*.npz"))
+            if stem.name == "chains"
+            else [stem.with_suffix(".npz")]
+        )
+        total = 0.0
+        for path in files:
+            with np.load(path, allow_pickle=False) as z:
+                total += float(z["fit_seconds"]) + float(z["predict_seconds"])
+        return total
     rows = [json.loads(s.with_suffix(".json").read_text()) for s in seed_stems(stem)]
     return sum(float(row["fit_seconds"]) + float(row["predict_seconds"]) for row in rows)
 
 
-def kind_of(rel, results=None):
+def kind_of(rel):
     """('PM fit' | 'PM chain' | 'PM chains' | 'PM CV' | '<method> fit' | ...) for a benchmark file under
-    results/{study}/benchmarks: 'chain' for a job of one chain, 'chains' for a job that runs a split's chains and
-    pools them (its split has a folder of chain files under ``results``)."""
+    results/{study}/benchmarks: 'chain' for a job of one chain, 'chains' for a job of a split's chains."""
     parts = rel.parts
     if parts[0] in ("cv", "fit"):
         method = parts[4]
         family = "PM" if method.startswith("PM") else method
-        what = "CV" if parts[0] == "cv" else ("chain" if rel.stem.startswith("chain") else "fit")
-        if what == "fit" and results is not None and (results / rel.with_suffix("")).is_dir():
-            what = "chains"
-        return f"{family} {what}"
+        what = (
+            "CV" if parts[0] == "cv" else ("fit" if not rel.stem.startswith("chain") else "chain")
+        )
+        return f"{family} {what}{'s' if rel.stem == 'chains' else ''}"
     return parts[0]
 
 
@@ -111,7 +119,7 @@ def main():
     rows = defaultdict(lambda: [0, 0.0, 0.0])
     for tsv in sorted(bench.rglob("*.tsv")):
         rel = tsv.relative_to(bench)
-        kind = kind_of(rel, args.results)
+        kind = kind_of(rel)
         acc = rows[kind]
         acc[0] += 1
         acc[1] += job_seconds(tsv)

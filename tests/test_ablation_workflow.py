@@ -28,8 +28,8 @@ def test_ablation_dry_run_counts_one_job_per_split(tmp_path):
     variants = 23  # PM variants in config/ablation.yaml
     cells = 4 * 3  # hsc activities x N
     splits = cells * 5  # x seeds
-    assert int(counts["fit_chains"]) == variants * splits  # its 4 chains and their pooling
-    assert "fit_chain" not in counts and "pool_chains" not in counts
+    assert int(counts["fit_chains"]) == variants * splits  # a job of its 4 chains per split
+    assert int(counts["pool_chains"]) == variants * splits and "fit_chain" not in counts
     assert int(counts["fit"]) == 3 * cells  # 1-NN, TGP, SR: one job of the 5 seeds per cell
     assert (
         "seed100" in out and "seed0." not in out
@@ -53,7 +53,7 @@ def test_goal_overlay_runs_the_chosen_variants_on_the_paper_protocols_splits(tmp
     counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
     cells = 4 * 4  # hsc activities x N
     splits = cells * 10  # x seeds
-    assert int(counts["fit_chains"]) == 2 * splits and "pool_chains" not in counts
+    assert int(counts["fit_chains"]) == int(counts["pool_chains"]) == 2 * splits
     assert int(counts["fit"]) == cells  # 1-NN: one job of the 10 seeds per cell
     assert "results/paper-goal/fit/random/hsc/" in out and "seed9" in out and "seed100" not in out
 
@@ -137,6 +137,26 @@ def test_chains_are_pooled_into_one_row_with_rhat_and_ess(ablation_run):
     pooled = np.load(d / "seed100.npz")
     np.testing.assert_array_equal(pooled["chain_trace_g_xy"][1], chains[1]["trace_g_xy"])
     assert pooled["chain_trace_log_likelihood"].shape == (2, 40)
+
+
+def test_a_changed_chain_count_reruns_the_splits_chains_and_pooling(ablation_run):
+    """PM from 2 to 3 chains after a finished run: its chain job (the new chain file is missing, and the pooling
+    reads it) and its pooling rerun; the other variants and methods do not. The dry run writes nothing."""
+    overlay = ablation_run / "three_chains.yaml"
+    overlay.write_text("methods: {PM: {chains: 3}}\n")
+    res = smk("results/ablation-ci/aggregate/results.csv", "-n", "--cores", "2", *ABLATION, str(overlay),
+              cwd=ablation_run)  # fmt: skip
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-3000:]
+    counts = dict(re.findall(r"^(\w+)\s+(\d+)$", out, re.M))
+    assert counts == {"fit_chains3": "1", "pool_chains": "1", "aggregate": "1", "total": "3"}, (
+        counts
+    )
+    assert (
+        "wildcards: protocol=contiguous, source=hsc, activity=golf, method=PM, n_train=30, seed=100"
+        in out
+    )
+    overlay.unlink()
 
 
 def test_report_has_the_convergence_table_and_the_section(ablation_run):

@@ -809,7 +809,7 @@ def test_a_block_job_runs_the_job_of_each_seed_in_turn_and_names_a_failing_seed(
     job = json.loads(params(Wildcards(method="PM"), {"code": ["a.py"], "cv": []}, {"path": outs}))
     assert job["block"] == [
         {
-            "input": {"code": ["a.py"], "cv": f"cv{s}.json"},
+            "input": {"cv": f"cv{s}.json"},  # no code paths: no job reads them
             "output": {"path": out},
             "wildcards": {"method": "PM", "seed": str(s)},
         }
@@ -850,73 +850,41 @@ def test_a_block_job_runs_the_job_of_each_seed_in_turn_and_names_a_failing_seed(
     assert jobserver.shutdown(jobserver.socket_path(cwd=tmp_path))
 
 
-def test_a_chains_job_runs_each_chain_then_the_pooling_with_their_own_targets_and_settings(
-    tmp_path,
-):
-    """The JSON of chains_job_params: C chain steps (the chain target, the chain settings, the job's features, cv
-    and code, chain file c, wildcard chain) and the pooling step (the command's target and settings, the chain
-    files as input); the command runs a step with its own target and settings, and names a failing chain."""
+def test_a_chains_job_runs_each_chain_in_turn_and_names_a_failing_chain(tmp_path):
+    """The JSON of chains_job_params: C chain steps (the job's inputs but code, chain file c, wildcard chain); the
+    command runs them one after the other into the job's log and names a failing chain."""
 
     class Wildcards(dict):
         def __getattr__(self, key):
             return self[key]
 
-    chain_settings = jobserver.job_settings({"fail": lambda w: "" if w.method == "PM" else "x"})
-    params = jobserver.chains_job_params(2, chain_settings, "bsrbench.jobs:fit_chain")
-    files = {"chains": ["s/chain0.npz", "s/chain1.npz"], "row": "s.json", "predictions": "s.npz"}
+    outs = [str(tmp_path / "chain0.txt"), str(tmp_path / "missing" / "chain1.txt")]
+    params = jobserver.chains_job_params(2)
     inputs = {"features": "f.npz", "cv": [], "code": ["a.py"]}
-    job = json.loads(params(Wildcards(method="PM", seed="7"), inputs, files))
-    w = {"method": "PM", "seed": "7"}
+    job = json.loads(params(Wildcards(method="PM", seed="7"), inputs, {"chains": outs}))
     assert job["block"] == [
-        *(
-            {
-                "target": "bsrbench.jobs:fit_chain",
-                "params": {"fail": ""},
-                "input": inputs,
-                "output": {"chain": f"s/chain{c}.npz"},
-                "wildcards": {**w, "chain": str(c)},
-            }
-            for c in range(2)
-        ),
         {
-            "input": {"features": "f.npz", "cv": [], "chains": files["chains"]},
-            "output": {"row": "s.json", "predictions": "s.npz"},
-            "wildcards": w,
-        },
+            "input": {"features": "f.npz", "cv": []},
+            "output": {"chain": out},
+            "wildcards": {"method": "PM", "seed": "7", "chain": str(c)},
+        }
+        for c, out in enumerate(outs)
     ]
-
-    # the same shape with ping: chain 0 runs with its own settings (not the command's, which fail), chain 1 fails
-    def step(c, fail):
-        return {"target": "bsrbench.jobserver:ping", "params": {"fail": fail},
-                "output": {"path": str(tmp_path / f"chain{c}.txt")}, "wildcards": {**w, "chain": str(c)}}  # fmt: skip
-
-    pool = {"output": {"path": str(tmp_path / "pool.txt")}, "wildcards": w}
+    # ping writes output "path": the same steps with that name
+    for step in job["block"]:
+        step["output"] = {"path": step["output"]["chain"]}
     log = tmp_path / "chains.log"
-
-    def command(steps):
-        return subprocess.run(
-            [sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:ping",
-             "--threads", "1", "--log", str(log), json.dumps({"block": steps}),
-             "--settings", json.dumps({"fail": "the command's settings"})],
-            env=dict(os.environ, **{jobserver.USE_SERVER_VAR: "0"}), cwd=tmp_path,
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
-
-    bad = command([step(0, ""), step(1, "chain 1"), pool])
-    assert bad.returncode != 0
-    assert (
-        "bsrbench.jobserver:ping: seed 7 chain 1 of the job of seed 7's chains and pooling failed"
-        in bad.stderr
-    ), bad.stderr
-    assert "ping asked to fail: chain 1" in bad.stderr + log.read_text()
-    assert (tmp_path / "chain0.txt").exists() and not (tmp_path / "pool.txt").exists()
-    # the pooling step has no settings of its own: the command's
-    bad = command([step(0, ""), step(1, ""), pool])
-    assert "seed 7 of the job of seed 7's chains and pooling failed" in bad.stderr, bad.stderr
-    assert "ping asked to fail: the command's settings" in bad.stderr + log.read_text()
-    text = log.read_text()
-    assert (
-        text.index("--- seed 7 chain 0 ---")
-        < text.index("--- seed 7 chain 1 ---")
-        < text.index("--- seed 7 ---")
+    res = subprocess.run(
+        [sys.executable, "-m", "bsrbench.jobserver", "job", "bsrbench.jobserver:ping",
+         "--threads", "1", "--log", str(log), json.dumps(job), "--settings", "{}"],
+        env=dict(os.environ, **{jobserver.USE_SERVER_VAR: "0"}), cwd=tmp_path,
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert res.returncode != 0
+    assert "bsrbench.jobserver:ping: seed 7 chain 1 of the chains of seed 7 failed" in res.stderr, (
+        res.stderr
     )
+    assert "FileNotFoundError" in res.stderr + log.read_text()
+    assert (tmp_path / "chain0.txt").exists()
+    text = log.read_text()
+    assert text.index("--- seed 7 chain 0 ---") < text.index("--- seed 7 chain 1 ---")

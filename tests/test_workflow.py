@@ -516,6 +516,7 @@ LOCAL_RULES = {
     "plot_gxy",
     "report_why_pm",
     "report_mechanisms",
+    "pool_chains",
     "plot_subjective",
     "report_pdf",
     "features_mat",
@@ -533,11 +534,11 @@ def test_every_rule_is_local_or_a_cluster_job():
 
 @pytest.mark.parametrize(
     "seeds_per_job, chain_rules",
-    [("null", {"fit_chains2", "fit_chains4"}), ("1", {"fit_chain", "pool_chains"})],
+    [("null", {"fit_chains2", "fit_chains4"}), ("1", {"fit_chain"})],
 )
 def test_chained_methods_run_in_one_job_per_split_or_per_chain(seeds_per_job, chain_rules):
-    """Chained methods (here with 2 and 4 chains): one job per split, a rule per chain count (cluster jobs), or a
-    job per chain (a cluster job) and one that pools them (local) with seeds_per_job 1; no other rule changes."""
+    """Chained methods (here with 2 and 4 chains): one job of the chains per split, a rule per chain count, or a job
+    per chain with seeds_per_job 1 (cluster jobs); the pooling (pool_chains, local) and every other rule as ever."""
     res = smk("--list-rules", "--configfile", "config/ablation.yaml", "config/ablation-ci.yaml",
               "--config", f"seeds_per_job={seeds_per_job}", "run=[PM,PMK16,PMj3,PMK8s5000text]")  # fmt: skip
     assert res.returncode == 0, res.stderr[-2000:]

@@ -15,8 +15,9 @@ SPLIT = "results/ci/{kind}/random/hsc/golf/{method}/n30/seed{seed}.{ext}"
 
 def seed_jobs(out):
     """{output file: (target, job spec, settings)} of the fit, chain, pooling and CV commands of a dry run with -p,
-    one entry per step: a block job's command carries the spec of each of its steps (a seed; a chain or the
-    pooling of a split), a step's own target and settings in place of the command's where it has them."""
+    one entry per step: a block job's command carries the spec of each of its steps (a seed, or a chain of a
+    split). A step's spec is its one-step job's but the ``code`` inputs (:func:`bsrbench.jobserver._step_input`),
+    which are left out here for both."""
     found = {}
     for line in out.splitlines():
         if "python -m bsrbench.jobserver job" not in line:
@@ -25,14 +26,11 @@ def seed_jobs(out):
         target, spec = args[4], json.loads(args[args.index("--log") + 2])
         settings = args[args.index("--settings") + 1]
         for one in spec.get("block", [spec]):
-            step_target = one.pop("target", target)
-            step_settings = (
-                json.dumps(one.pop("params"), sort_keys=True) if "params" in one else settings
-            )
+            one["input"].pop("code", None)
             out_file = (
                 one["output"].get("row") or one["output"].get("json") or one["output"]["chain"]
             )
-            found[out_file] = (step_target, json.dumps(one, sort_keys=True), step_settings)
+            found[out_file] = (target, json.dumps(one, sort_keys=True), settings)
     return found
 
 
@@ -60,12 +58,10 @@ def test_a_block_job_runs_each_seed_with_the_job_spec_of_its_one_seed_job(tmp_pa
     assert per_seed == blocks
 
 
-def test_a_chains_job_runs_each_chain_and_the_pooling_with_the_spec_of_their_one_step_jobs(
-    tmp_path,
-):
-    """The dry runs of the CI-scale ablation (2 chains per split) with seeds_per_job 1 (rules fit_chain and
-    pool_chains: a job per chain and one that pools) and the default (one job per split, rule fit_chains) plan
-    the same steps, spec for spec (target, input, output, wildcards, settings)."""
+def test_a_chains_job_runs_each_chain_with_the_spec_of_its_one_chain_job(tmp_path):
+    """The dry runs of the CI-scale ablation (2 chains per split) with seeds_per_job 1 (rule fit_chain: a job per
+    chain) and the default (rule fit_chains: one job per split) plan the same chain steps, spec for spec (target,
+    input, output, wildcards, settings), and the same pooling jobs; no block command carries the code paths."""
     work = copy_tree(tmp_path)
     runs = {}
     for k in ("1", "null"):
@@ -73,16 +69,18 @@ def test_a_chains_job_runs_each_chain_and_the_pooling_with_the_spec_of_their_one
                   "--config", f"seeds_per_job={k}", cwd=work)  # fmt: skip
         out = res.stdout + res.stderr
         assert res.returncode == 0, out[-3000:]
-        runs[k] = (seed_jobs(out), job_counts(out))
-    (per_step, n1), (blocks, n_default) = runs["1"], runs["null"]
+        runs[k] = (seed_jobs(out), job_counts(out), out)
+    (per_step, n1, _), (blocks, n_default, out) = runs["1"], runs["null"]
     splits = n_default["fit_chains"]
-    assert splits == n1["pool_chains"] and n1["fit_chain"] == 2 * splits
-    assert "fit_chain" not in n_default and "pool_chains" not in n_default
+    assert splits == n_default["pool_chains"] == n1["pool_chains"] and n1["fit_chain"] == 2 * splits
+    assert "fit_chain" not in n_default
     chain_steps = [
         f for f, (target, _, _) in per_step.items() if target == "bsrbench.jobs:fit_chain"
     ]
     assert len(chain_steps) == 2 * splits
     assert per_step == blocks
+    commands = [ln for ln in out.splitlines() if "bsrbench.jobs:fit_chain" in ln]
+    assert len(commands) == splits and not any("bsrbench/runs.py" in ln for ln in commands)
 
 
 @pytest.mark.slow  # two runs of config/ci.yaml

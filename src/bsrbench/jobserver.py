@@ -1,7 +1,7 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
 The study's fits run in thousands of short jobs (one per seed, or one per block of seeds that runs the job of each
-seed in turn, or one per split that runs its chains and pools them, :func:`run_block`), and most fits compute for
+seed in turn, or one per split that runs its chains, :func:`run_block`), and most fits compute for
 well under a second, while a fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
 cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
 (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
@@ -220,11 +220,18 @@ def job_params():
     return job
 
 
+def _step_input(input):
+    """A block step's named inputs: the job's, but ``code`` (the source files, inputs for Snakemake's code trigger
+    that no job reads), so that a block's command line stays short (a step would repeat some 2,000 characters of
+    paths, and a long block would pass the kernel's limit on a command's arguments)."""
+    return {name: val for name, val in _named(input).items() if name != "code"}
+
+
 def block_job_params(seeds, per_seed_input=None):
     """A Snakemake ``params`` function like :func:`job_params` for a job that runs a block of seeds: the JSON
     ``{"block": [spec, ...]}``, one spec per seed of ``seeds`` (in order), each the spec that :func:`job_params`
     gives the one-seed job of that seed: its wildcards with ``seed``, its output files (the block's named outputs
-    are lists with one file per seed, in seed order), the block's named inputs, except those of ``per_seed_input``
+    are lists with one file per seed, in seed order), the block's named inputs but ``code``, except those of ``per_seed_input``
     ({name: function of the seed's wildcards (attributes) to the input, as the one-seed rule's input function})."""
     import json
     from types import SimpleNamespace
@@ -233,7 +240,7 @@ def block_job_params(seeds, per_seed_input=None):
         specs = []
         for i, seed in enumerate(seeds):
             w = {**_named(wildcards), "seed": str(seed)}
-            inp = _named(input)
+            inp = _step_input(input)
             for name, get in (per_seed_input or {}).items():
                 inp[name] = _plain(get(SimpleNamespace(**w)))
             out = {name: files[i] for name, files in _named(output).items()}
@@ -243,37 +250,23 @@ def block_job_params(seeds, per_seed_input=None):
     return job
 
 
-def chains_job_params(n_chains, chain_settings, chain_target):
-    """A Snakemake ``params`` function for a job that runs the ``n_chains`` chains of one split and pools them: the
-    JSON ``{"block": [chain 0, ..., chain C-1, pool]}`` for :func:`run_block`. Chain c's step is the job that a
-    one-chain rule would run (target ``chain_target``, its settings ``chain_settings`` evaluated on the wildcards,
-    as :func:`job_settings` gives them; input: the job's ``features``, ``cv`` and ``code``; output ``chain``: the
-    job's ``chains`` file c; wildcards with ``chain``); the pooling step is the job of the one-split pooling rule
-    (the block's own target and settings; input: ``features``, ``cv`` and the ``chains`` files; output: ``row``,
-    ``predictions``)."""
+def chains_job_params(n_chains):
+    """A Snakemake ``params`` function like :func:`job_params` for a job that runs the ``n_chains`` chains of one
+    split: the JSON ``{"block": [chain 0, ..., chain C-1]}`` for :func:`run_block`, chain c's spec the one a
+    one-chain job has (the job's named inputs but ``code``, output ``chain``: the job's ``chains`` file c, the
+    wildcards with ``chain``)."""
     import json
 
     def job(wildcards, input, output):
-        w, inp, out = _named(wildcards), _named(input), _named(output)
-        settings = json.loads(chain_settings(wildcards))
+        w, inp, out = _named(wildcards), _step_input(input), _named(output)
         steps = [
             {
-                "target": chain_target,
-                "params": settings,
-                "input": {k: inp[k] for k in ("features", "cv", "code") if k in inp},
+                "input": inp,
                 "output": {"chain": out["chains"][c]},
                 "wildcards": {**w, "chain": str(c)},
             }
             for c in range(n_chains)
         ]
-        pool_input = {k: inp[k] for k in ("features", "cv") if k in inp}
-        steps.append(
-            {
-                "input": {**pool_input, "chains": list(out["chains"])},
-                "output": {"row": out["row"], "predictions": out["predictions"]},
-                "wildcards": w,
-            }
-        )
         return json.dumps({"block": steps}, sort_keys=True)
 
     return job
@@ -378,39 +371,35 @@ def _step(spec):
 
 def run_block(target, specs, *, params, threads, log, use_server=True):
     """Run the steps of a block job one after the other, each as :func:`run` runs a one-step job, all logging to
-    the block's ``log`` (emptied first). A step is the job of one seed (:func:`block_job_params`) or one chain, or
-    the pooling, of a split (:func:`chains_job_params`); a step's own ``target`` and ``params``, where it has them,
-    replace the block's. Stops at the first step that fails, with a message naming it (SystemExit); Snakemake then
-    removes the outputs of the whole block, and reruns it whole."""
+    the block's ``log`` (emptied first). A step is the job of one seed (:func:`block_job_params`) or of one chain
+    of a split (:func:`chains_job_params`). Stops at the first step that fails, with a message naming it
+    (SystemExit); Snakemake then removes the outputs of the whole block, and reruns it whole."""
     import traceback
 
     if log:
         open(log[0], "w").close()
     seeds = [spec["wildcards"]["seed"] for spec in specs]
     what = (
-        f"the block of seeds {seeds[0]}-{seeds[-1]}"
-        if len(set(seeds)) > 1 or len(specs) == 1
-        else f"the job of seed {seeds[0]}'s chains and pooling"
+        f"the chains of seed {seeds[0]}"
+        if "chain" in specs[0]["wildcards"]
+        else f"the block of seeds {seeds[0]}-{seeds[-1]}"
     )
     for spec in specs:
-        step, step_target = _step(spec), spec.get("target", target)
-        job = dict(
-            spec, params=spec.get("params", params), threads=threads, log=log, log_append=True
-        )
-        job.pop("target", None)
+        step = _step(spec)
+        job = dict(spec, params=params, threads=threads, log=log, log_append=True)
         if log:
             with open(log[0], "a") as f:
                 print(f"--- {step} ---", file=f)
         stderr = sys.stderr
         try:
-            run(step_target, job, use_server=use_server)
+            run(target, job, use_server=use_server)
         except (Exception, SystemExit) as exc:
             # raised in this process (run_local): its traceback into the log
             if not isinstance(exc, SystemExit):
                 traceback.print_exc()
                 exc = f"{type(exc).__name__}: {exc}"
             where = f"; see {log[0]}" if log else ""
-            raise SystemExit(f"{step_target}: {step} of {what} failed{where}:\n{exc}") from None
+            raise SystemExit(f"{target}: {step} of {what} failed{where}:\n{exc}") from None
         finally:
             # run in this process, the job's stderr was its log: the block's message goes to the command's
             if sys.stderr is not stderr:

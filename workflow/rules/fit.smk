@@ -156,14 +156,11 @@ else:
                 JOB.format(target="bsrbench.jobs:fit")
 
 
-# `chains: C` > 1: one job per split that runs its C chains (each a step as rule fit_chain runs it) and pools them,
-# or, with seeds_per_job 1, one job per chain and one that pools them (rules fit_chain, pool_chains).
+# `chains: C` > 1: one job per split that runs its C chains (each the job of rule fit_chain), or, with seeds_per_job
+# 1, one job per chain (rule fit_chain); either way rule pool_chains pools them. The pooling reads every chain file,
+# so a changed chain count reruns it, and a missing chain file the chains' job.
 SEED_DIR = f"{RESULTS}/fit/{SPLIT}/seed{{seed}}"
 if PER_SEED:
-
-    # quick: on the submit host under SLURM, like the Snakefile's other localrules
-    localrules:
-        pool_chains,
 
     rule fit_chain:
         input:
@@ -171,11 +168,11 @@ if PER_SEED:
             cv=cv_input,
             code=estimator_sources,
         output:
-            chain=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.npz",
+            chain=f"{SEED_DIR}/chain{{chain}}.npz",
         log:
-            f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.log",
+            f"{LOGS}/fit/{SPLIT}/seed{{seed}}/chain{{chain}}.log",
         benchmark:
-            f"{RESULTS}/benchmarks/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}/chain{{chain}}.tsv"
+            f"{RESULTS}/benchmarks/fit/{SPLIT}/seed{{seed}}/chain{{chain}}.tsv"
         wildcard_constraints:
             method=method_regex(chained=True),
         conda:
@@ -190,30 +187,6 @@ if PER_SEED:
         shell:
             JOB.format(target="bsrbench.jobs:fit_chain")
 
-    rule pool_chains:
-        input:
-            features="results/features/{source}/{activity}.npz",
-            cv=cv_input,
-            chains=chain_inputs,
-        output:
-            row=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.json",
-            predictions=f"{RESULTS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.npz",
-        log:
-            f"{LOGS}/fit/{{protocol}}/{{source}}/{{activity}}/{{method}}/n{{n_train}}/seed{{seed}}.log",
-        wildcard_constraints:
-            method=method_regex(chained=True),
-        conda:
-            "../envs/bsrbench.yaml"
-        threads: 1
-        resources:
-            mem_mb=2000,
-            runtime=10,
-        params:
-            settings=jobserver.job_settings(FIT_PARAMS),
-            job=jobserver.job_params(),
-        shell:
-            JOB.format(target="bsrbench.jobs:pool")
-
 else:
     CHAIN_GROUPS = STUDY.chain_groups()
     for n_chains, methods in CHAIN_GROUPS.items():
@@ -227,12 +200,10 @@ else:
                 code=estimator_sources,
             output:
                 chains=[f"{SEED_DIR}/chain{c}.npz" for c in range(n_chains)],
-                row=f"{SEED_DIR}.json",
-                predictions=f"{SEED_DIR}.npz",
             log:
-                f"{LOGS}/fit/{SPLIT}/seed{{seed}}.log",
+                f"{LOGS}/fit/{SPLIT}/seed{{seed}}/chains.log",
             benchmark:
-                f"{RESULTS}/benchmarks/fit/{SPLIT}/seed{{seed}}.tsv"
+                f"{RESULTS}/benchmarks/fit/{SPLIT}/seed{{seed}}/chains.tsv"
             wildcard_constraints:
                 method="|".join(methods),
             conda:
@@ -240,11 +211,34 @@ else:
             threads: 1
             resources:
                 mem_mb=2000,
-                runtime=60 * n_chains + 10,
+                runtime=30 * n_chains,
             params:
-                settings=jobserver.job_settings(FIT_PARAMS),
-                job=jobserver.chains_job_params(
-                    n_chains, jobserver.job_settings(CHAIN_PARAMS), "bsrbench.jobs:fit_chain"
-                ),
+                settings=jobserver.job_settings(CHAIN_PARAMS),
+                job=jobserver.chains_job_params(n_chains),
             shell:
-                JOB.format(target="bsrbench.jobs:pool")
+                JOB.format(target="bsrbench.jobs:fit_chain")
+
+
+rule pool_chains:
+    input:
+        features="results/features/{source}/{activity}.npz",
+        cv=cv_input,
+        chains=chain_inputs,
+    output:
+        row=f"{SEED_DIR}.json",
+        predictions=f"{SEED_DIR}.npz",
+    log:
+        f"{LOGS}/fit/{SPLIT}/seed{{seed}}.log",
+    wildcard_constraints:
+        method=method_regex(chained=True),
+    conda:
+        "../envs/bsrbench.yaml"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    params:
+        settings=jobserver.job_settings(FIT_PARAMS),
+        job=jobserver.job_params(),
+    shell:
+        JOB.format(target="bsrbench.jobs:pool")
