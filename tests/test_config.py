@@ -541,6 +541,11 @@ REF = "bsrbench.models.reference"
             {"estimator": f"{REF}:RidgeRegressor", "params": [1.0]},
             r"'methods\.M\.params': expected a mapping",
         ),
+        (
+            {"estimator": f"{REF}:RidgeRegressor", "chains": 2},
+            r"'methods\.M\.chains': 2, but bsrbench\.models\.reference:RidgeRegressor takes no random_state, "
+            r"so its chains would be identical; expected chains: 1, or an estimator that samples",
+        ),
     ],
 )
 def test_method_settings_are_checked_before_any_job(setting, message):
@@ -557,6 +562,12 @@ def test_method_settings_are_checked_before_any_job(setting, message):
 
 PM_PATH = "bsrbench.models.bsr:BayesianSR"
 PM_OK = {"n_atoms": 16, "n_neighbors": 5, "n_iter": 40, "n_burn_in": 20}
+
+
+def test_chains_are_allowed_for_an_estimator_with_a_random_state():
+    check_method_settings(
+        {"M": {"estimator": PM_PATH, "params": PM_OK, "chains": 4, "grid": None}}, ["M"]
+    )
 
 
 @pytest.mark.parametrize(

@@ -451,6 +451,19 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
                 raise InputError(
                     f"config key '{where_grid}': {p}: {v!r}; expected a non-empty list of values"
                 )
+        chains = setting.get("chains", 1)
+        if (
+            accepted is not None
+            and isinstance(chains, int)
+            and chains > 1
+            and "random_state" not in accepted
+        ):
+            # chain c differs from chain 0 by its seed alone (runs.chain_seed)
+            raise InputError(
+                f"config key 'methods.{name}.chains': {chains}, but {path} takes no random_state, so its chains "
+                "would be identical; expected chains: 1, or an estimator that samples (an MCMC sampler such as "
+                "bsrbench.models.bsr:BayesianSR)"
+            )
         own_cv = setting.get("cv") or {}
         if own_cv and own_cv.get("mode") != "none" and not grid:
             raise InputError(
