@@ -7,8 +7,8 @@ Reads what a finished run leaves behind, nothing else:
   the seconds spent inside the estimator (``fit_seconds + predict_seconds``, ``cv_seconds``), timed by the job;
 - optionally Snakemake's own log (``--log``): the run's wall time, from its first to its last time stamp.
 
-For each kind of job (PM fit, PM chain, PM chains, PM CV, each baseline's fits and CV, features, the rest) it prints the
-number of jobs, the summed job wall time, the summed model time, and their difference (job overhead: starting
+For each kind of job (PM fit, PM chain, PM chains, PM CV, each baseline's fits and CV, features, the rest) it
+prints the number of jobs, the summed job wall time, the summed model time, and their difference (job overhead: starting
 the rule's process, handing the job to the job server, loading the features, writing the outputs). With the
 run's wall time W and c cores, c W minus the summed job wall time is the time no job was running on a core
 (scheduling, waiting on dependencies, the report).
@@ -62,14 +62,10 @@ def model_seconds(results, rel):
             float(json.loads(s.with_suffix(".json").read_text())["cv_seconds"])
             for s in seed_stems(stem)
         )
-    if stem.name.startswith(
-        "chain"
-    ):  # a job of one chain (chain3.tsv) or of a split's chains (chains.tsv)
-        files = (
-            sorted(stem.parent.glob("chain[0-9]*.npz"))
-            if stem.name == "chains"
-            else [stem.with_suffix(".npz")]
-        )
+    if stem.name.startswith("chain"):
+        # a job of one chain (chain3.tsv) or of a split's chains (chains.tsv): the chain files' own timings
+        one = stem.name != "chains"
+        files = [stem.with_suffix(".npz")] if one else sorted(stem.parent.glob("chain[0-9]*.npz"))
         total = 0.0
         for path in files:
             with np.load(path, allow_pickle=False) as z:
@@ -86,10 +82,13 @@ def kind_of(rel):
     if parts[0] in ("cv", "fit"):
         method = parts[4]
         family = "PM" if method.startswith("PM") else method
-        what = (
-            "CV" if parts[0] == "cv" else ("fit" if not rel.stem.startswith("chain") else "chain")
-        )
-        return f"{family} {what}{'s' if rel.stem == 'chains' else ''}"
+        if parts[0] == "cv":
+            what = "CV"
+        elif rel.stem.startswith("chain"):
+            what = "chains" if rel.stem == "chains" else "chain"
+        else:
+            what = "fit"
+        return f"{family} {what}"
     return parts[0]
 
 

@@ -1,9 +1,9 @@
 """A local fork server for the study's short jobs: one warm Python process, one fork per job.
 
 The study's fits run in thousands of short jobs (one per seed, or one per block of seeds that runs the job of each
-seed in turn, or one per split that runs its chains, :func:`run_block`), and most fits compute for
-well under a second, while a fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and pandas) and loading numba's
-cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
+seed in turn, or one per split that runs its chains, :func:`run_block`), and most fits compute for well under a
+second, while a fresh interpreter spends about 1.8 s of CPU importing scikit-learn (which imports scipy.stats and
+pandas) and loading numba's cached kernels. On a 2-core machine that is over half of the paper protocol's wall time. The rules' shell commands
 (``python -m bsrbench.jobserver job``) therefore hand their job to a server that has done those imports once (the job
 module's ``PRELOAD`` and the ``warm_up()`` of its modules, see :func:`_preload`) and forks a child per job (the pattern of Python's ``multiprocessing`` forkserver, here reachable from independent processes through
 a Unix socket). The child runs exactly the code the job would run in-process, with the job's log as its stdout and
@@ -231,8 +231,9 @@ def block_job_params(seeds, per_seed_input=None):
     """A Snakemake ``params`` function like :func:`job_params` for a job that runs a block of seeds: the JSON
     ``{"block": [spec, ...]}``, one spec per seed of ``seeds`` (in order), each the spec that :func:`job_params`
     gives the one-seed job of that seed: its wildcards with ``seed``, its output files (the block's named outputs
-    are lists with one file per seed, in seed order), the block's named inputs but ``code``, except those of ``per_seed_input``
-    ({name: function of the seed's wildcards (attributes) to the input, as the one-seed rule's input function})."""
+    are lists with one file per seed, in seed order), the block's named inputs but ``code``, except those of
+    ``per_seed_input`` ({name: function of the seed's wildcards (attributes) to the input, as the one-seed rule's
+    input function})."""
     import json
     from types import SimpleNamespace
 
