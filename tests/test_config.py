@@ -102,7 +102,7 @@ def test_scalars_keep_snakemakes_reading_and_bad_yaml_names_the_key():
     retype_cli_config(config, args, parsed)
     assert config == {"conformal_level": None, "gap": None} and parsed["conformal_level"] == "null"
     arg = "n_train=[30, 60"
-    with pytest.raises(InputError, match=r"--config n_train: '\[30, 60' is not valid YAML"):
+    with pytest.raises(InputError, match=r"--config n_train='\[30, 60': not valid YAML"):
         retype_cli_config({}, [arg], {"n_train": ["fake"]})
 
 
@@ -518,7 +518,7 @@ REF = "bsrbench.models.reference"
     [
         (
             {"estimator": "bsrbench.models.gpr:GPR"},
-            r"'methods\.M\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*cannot import module",
+            r"'methods\.M\.estimator': estimator 'bsrbench\.models\.gpr:GPR': cannot find module",
         ),
         ({"estimator": f"{REF}:Nope"}, r"'methods\.M\.estimator'.*no attribute 'Nope'"),
         (

@@ -259,3 +259,118 @@ def test_study_refuses_a_config_option_without_an_entry():
     rc, out = run([str(ROOT / "bin" / "study"), "-n", "--config"], ROOT)
     assert rc == 2
     assert_one_line(out, "[study] --config: no KEY=VALUE given")
+
+
+# --------------------------------------------------------------------- a configuration never runs code
+def _marker_config(tmp_path, estimator, params):
+    marker = tmp_path / "marker"
+    config = tmp_path / "evil.yaml"
+    config.write_text(
+        f"run: [EVIL]\nmethods:\n  EVIL:\n    estimator: {estimator!r}\n    params: {params}\n    grid: null\n"
+    )
+    return config, marker
+
+
+@pytest.mark.parametrize(
+    "estimator, params, words",
+    [
+        (
+            "os:system",
+            "{{command: 'touch {marker}'}}",
+            "estimator 'os:system': module 'os' is of Python's standard library, which has no estimator",
+        ),
+        (
+            "subprocess:Popen",
+            "{{args: [touch, '{marker}']}}",
+            "estimator 'subprocess:Popen': module 'subprocess' is of Python's standard library",
+        ),
+        (
+            "fractions:Fraction",
+            "{{numerator: 1}}",
+            "estimator 'fractions:Fraction': module 'fractions' is of Python's standard library",
+        ),
+        (
+            "sklearn.linear_model:ridge_regression",
+            "{{}}",
+            "estimator 'sklearn.linear_model:ridge_regression': 'ridge_regression' is a function, not a class",
+        ),
+        (
+            "numpy:ndarray",
+            "{{shape: [1]}}",
+            "estimator 'numpy:ndarray': class 'ndarray' has no fit, predict, get_params",
+        ),
+    ],
+    ids=[
+        "function-of-os",
+        "class-of-subprocess",
+        "stdlib-class",
+        "library-function",
+        "class-not-estimator",
+    ],
+)
+def test_a_dry_run_refuses_an_estimator_that_is_not_an_estimator_class_and_calls_nothing(
+    work, tmp_path, estimator, params, words
+):
+    """Planning a study imports only the estimators' own modules and builds nothing before the class is known to
+    be a regressor: a configuration naming a function or another class gets one line, and its payload never
+    runs."""
+    config, marker = _marker_config(tmp_path, estimator, params.format(marker=tmp_path / "marker"))
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--configfile", str(config)], work)
+    assert rc == 1, out[-3000:]
+    assert "Traceback" not in out and 'File "' not in out, out[-3000:]
+    lines = [x for x in out.splitlines() if x.startswith("config key 'methods.EVIL.estimator'")]
+    assert len(lines) == 1 and lines[0].startswith(
+        f"config key 'methods.EVIL.estimator': {words}"
+    ), out
+    assert not marker.exists()
+
+
+def test_bin_study_refuses_a_configfile_that_asks_snakemake_to_evaluate_python(tmp_path):
+    """Snakemake reads --configfile files with YTE, which evaluates the expressions of a file that sets
+    __use_yte__: bin/study refuses such a file before Snakemake reads it."""
+    marker = tmp_path / "marker"
+    bad = tmp_path / "yte.yaml"
+    bad.write_text(f"__use_yte__: true\nstudy: ?__import__('os').system('touch {marker}')\n")
+    rc, out = run([str(ROOT / "bin" / "study"), "-n", "--configfile", str(bad)], ROOT)
+    assert rc == 2, out[-3000:]
+    assert_one_line(
+        out,
+        f"[study] --configfile {bad}: key '__use_yte__' asks Snakemake to evaluate the file's Python expressions "
+        "(YTE templates); expected a plain YAML configuration",
+    )
+    assert not marker.exists()
+
+
+def _alias_bomb(levels=7):
+    """A YAML document of a few hundred bytes whose aliases expand to 10**levels strings."""
+    lines = ['a0: &a0 ["x","x","x","x","x","x","x","x","x","x"]']
+    for k in range(1, levels):
+        lines.append(f"a{k}: &a{k} [" + ",".join([f"*a{k - 1}"] * 10) + "]")
+    return "\n".join(lines) + f"\nn_train: *a{levels - 1}\n"
+
+
+def test_an_alias_bomb_is_refused_before_anything_walks_it(work, tmp_path):
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text(_alias_bomb())
+    assert len(bomb.read_bytes()) < 1000
+    message = (
+        "configuration: expands to more than 100000 values (YAML anchors and aliases counted at each use); "
+        "expected a configuration of ordinary size"
+    )
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--configfile", str(bomb)], work)
+    assert rc == 1, out[-3000:]
+    assert_one_line(out, message)
+    rc, out = run([str(ROOT / "bin" / "study"), "-n", "--configfile", str(bomb)], ROOT)
+    assert rc == 2, out[-3000:]
+    assert_one_line(out, f"[study] --configfile {bomb}: {message.removeprefix('configuration: ')}")
+
+
+def test_seed_start_beyond_32_bit_seeds_is_refused(work):
+    """The schema's maximum leaves room for n_seeds (at most 1000) below 2**31."""
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--config", "seed_start=2147483640"], work)
+    assert rc == 1, out[-3000:]
+    assert (
+        "configuration: key 'seed_start', value 2147483640: 2147483640 is greater than the maximum"
+        in out
+    )
+    assert "Traceback" not in out

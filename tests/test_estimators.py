@@ -16,10 +16,86 @@ def test_estimator_loading_errors_name_the_path_and_parameter():
     assert load_estimator_class(f"{REF}:RidgeRegressor").__name__ == "RidgeRegressor"
     with pytest.raises(InputError, match="package.module:ClassName"):
         load_estimator_class("bsrbench.models.reference.RidgeRegressor")
-    with pytest.raises(InputError, match="cannot import module 'bsrbench.models.nosuch'"):
+    with pytest.raises(InputError, match="cannot find module 'bsrbench.models.nosuch'"):
         load_estimator_class("bsrbench.models.nosuch:X")
     with pytest.raises(InputError, match="no attribute 'Nope'"):
         load_estimator_class(f"{REF}:Nope")
     with pytest.raises(InputError, match=r"no parameter\(s\) \['alpah'\]"):
         make_estimator(f"{REF}:RidgeRegressor", {"alpah": 1.0})
     assert default_grid(f"{REF}:RidgeRegressor") == {"alpha": [0.1, 1.0, 10.0, 100.0, 1000.0]}
+
+
+# ------------------------------------------------------------- the resolver runs no code it did not mean to
+def _package(tmp_path, monkeypatch, name, init="", modules=None):
+    """A package ``name`` on ``sys.path`` whose ``__init__`` is ``init`` and with the modules ``{name: source}``."""
+    pkg = tmp_path / name
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text(init)
+    for mod, src in (modules or {}).items():
+        (pkg / f"{mod}.py").write_text(src)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return pkg
+
+
+@pytest.mark.parametrize(
+    "path, words",
+    [
+        ("os:system", "module 'os' is of Python's standard library, which has no estimator"),
+        ("subprocess:Popen", "module 'subprocess' is of Python's standard library"),
+        ("sklearn.linear_model:ridge_regression", "'ridge_regression' is a function, not a class"),
+        ("bsrbench.models.reference:np", "'np' is a module, not a class"),
+        ("numpy:ndarray", "class 'ndarray' has no fit, predict, get_params"),
+        ("sklearn.preprocessing:StandardScaler", "class 'StandardScaler' has no predict"),
+        ("bsrbench.models.reference:", "expected 'package.module:ClassName'"),
+        ("a b:C", "expected 'package.module:ClassName'"),
+    ],
+)
+def test_the_resolver_accepts_only_estimator_classes(path, words):
+    with pytest.raises(InputError) as err:
+        make_estimator(path, {})
+    assert str(err.value).startswith("estimator ") and words in str(err.value), err.value
+
+
+def test_a_missing_module_is_refused_without_importing_its_parent_package(tmp_path, monkeypatch):
+    marker = tmp_path / "marker"
+    _package(tmp_path, monkeypatch, "sidefx_pkg", f"open({str(marker)!r}, 'w').close()\n")
+    with pytest.raises(InputError, match="package 'sidefx_pkg' has no module 'nosuch'"):
+        load_estimator_class("sidefx_pkg.nosuch:X")
+    assert not marker.exists()
+    # a module of the package that holds no such class is imported (the configuration names it), then refused
+    with pytest.raises(InputError, match="module 'sidefx_pkg' has no attribute 'X'"):
+        load_estimator_class("sidefx_pkg:X")
+    assert marker.exists()
+
+
+def test_a_module_getattr_is_never_asked_for_the_class(tmp_path, monkeypatch):
+    """The class is taken from the module's namespace: a module ``__getattr__`` (PEP 562) would run code."""
+    marker = tmp_path / "marker"
+    _package(
+        tmp_path,
+        monkeypatch,
+        "lazy_pkg",
+        f"def __getattr__(name):\n    open({str(marker)!r}, 'w').close()\n    raise AttributeError(name)\n",
+    )
+    with pytest.raises(InputError, match="module 'lazy_pkg' has no attribute 'Model'"):
+        load_estimator_class("lazy_pkg:Model")
+    assert not marker.exists()
+
+
+def test_an_estimator_class_of_another_package_is_accepted(tmp_path, monkeypatch):
+    """A researcher's own regressor in their own package: found, imported, checked and built."""
+    _package(
+        tmp_path,
+        monkeypatch,
+        "own_models",
+        modules={
+            "mean": "from sklearn.base import BaseEstimator, RegressorMixin\n"
+            "class MeanPose(RegressorMixin, BaseEstimator):\n"
+            "    def __init__(self, shrink=0.0):\n        self.shrink = shrink\n"
+            "    def fit(self, X, Y):\n        self.mean_ = Y.mean(0)\n        return self\n"
+            "    def predict(self, X):\n        import numpy as np\n"
+            "        return np.tile(self.mean_ * (1 - self.shrink), (len(X), 1))\n"
+        },
+    )
+    est = make_estimator("own_models.mean:MeanPose", {"shrink": 0.5})
+    assert type(est).__name__ == "MeanPose" and est.shrink == 0.5

@@ -10,20 +10,16 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bsrbench.io import load_features
 from bsrbench.reporting import freshness
 from bsrbench.reporting.published import main
 from bsrbench.results import (
     PROVENANCE_COLUMNS,
-    aggregate_rows,
     code_digests,
     code_fingerprint,
     git_commit,
     row_provenance,
 )
-from bsrbench.runs import run_job
 from bsrbench.sources import ROOT
-from bsrbench.splits import JobSpec
 
 NN1 = "bsrbench.models.reference:NearestNeighbourRegressor"
 RIDGE = "bsrbench.models.reference:RidgeRegressor"
@@ -62,29 +58,9 @@ def test_git_commit_names_head_and_a_dirty_work_tree(tmp_path):
     assert git_commit(tmp_path) == head + "+dirty"
 
 
-def _row(features, method="NN1", estimator=NN1, seed=0, params=None):
-    spec = JobSpec("hsc", "golf", method, 30, seed)
-    params = {"n_neighbors": 1} if params is None else params
-    return run_job(spec, load_features(features), estimator=estimator, params=params)[0]
-
-
 @pytest.fixture
-def study(tmp_path, synthetic_features):
-    """A published table ``ci.csv`` (study ci: config/ci.yaml) of four 1-NN rows and one ridge row made by
-    today's code on synthetic features in ``features/hsc/golf.npz``, with its provenance."""
-    folder = tmp_path / "features" / "hsc"
-    folder.mkdir(parents=True)
-    path = folder / "golf.npz"
-    shutil.move(synthetic_features(tmp_path), path)
-    rows = [_row(path, seed=s) for s in range(4)] + [
-        _row(path, "Ridge", RIDGE, params={"alpha": 1.0})
-    ]
-    table = tmp_path / "published" / "ci.csv"
-    table.parent.mkdir()
-    df = aggregate_rows(rows)
-    df.to_csv(table, index=False)
-    freshness.write_table_provenance(table, df)
-    return table
+def study(published_ci_table):
+    return published_ci_table
 
 
 def _write_part(df, path, files=("config/ci.yaml",)):
@@ -290,7 +266,8 @@ def test_cell_shifts_are_changes_of_the_mean_in_standard_errors_of_the_old_mean(
 def test_a_rerun_row_runs_blas_on_one_thread_as_the_fit_jobs_do(monkeypatch):
     from threadpoolctl import threadpool_info
 
-    monkeypatch.setattr(freshness, "_rerun_row", lambda row, config, folder: threadpool_info())
+    monkeypatch.setattr(freshness, "row_settings", lambda row, config, where: {})
+    monkeypatch.setattr(freshness, "_rerun_row", lambda settings, folder: threadpool_info())
     inside = freshness.rerun_row({}, {})
     blas = [p for p in inside if p["user_api"] == "blas"]
     assert blas and all(p["num_threads"] == 1 for p in blas)
@@ -519,3 +496,199 @@ def test_shift_names_the_file_without_rows_or_without_a_numeric_column(study, tm
     assert _one_error_line(capsys).startswith(f"error: {study}: no column 'nosuch'")
     assert main(["shift", str(study), str(study), "--column", "params"]) == 2
     assert _one_error_line(capsys).startswith(f"error: {study}: column 'params' is not numeric")
+
+
+# ------------------------------------------------------------------- a published row never names code
+def _edit_row(table, line, **values):
+    """Set columns of the row on CSV line ``line`` (the header is line 1) of ``table``."""
+    df = pd.read_csv(table)
+    for col, v in values.items():
+        df[col] = df[col].astype(object) if col in df.columns else None
+        df.loc[line - 2, col] = v
+    df.to_csv(table, index=False)
+
+
+@pytest.mark.parametrize("command", [["verify", "--rows", "5"], ["restamp"]])
+def test_a_row_naming_a_foreign_estimator_is_refused_and_never_run(
+    study, tmp_path, capsys, command
+):
+    """verify and restamp take the estimator from the study's configuration: a row naming another callable is
+    refused before any row is rerun, and its payload never runs."""
+    marker = tmp_path / "marker"
+    payload = json.dumps({"args": ["sh", "-c", f"touch {marker}"]})
+    _edit_row(study, 3, estimator="subprocess:Popen", params=payload)
+    before = study.read_bytes()
+    assert main([*command[:1], str(study), *command[1:]]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {study} line 3: column 'estimator' is 'subprocess:Popen'; expected "
+        "'bsrbench.models.reference:NearestNeighbourRegressor', the estimator of method NN1 in the configuration"
+    )
+    assert not marker.exists() and study.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "values, words",
+    [
+        (
+            {"params": '{"n_neighbors": 3}'},
+            "line 2: column 'params': n_neighbors: 3 is not what method NN1 is configured with; expected 1",
+        ),
+        (
+            {"params": '{"n_neighbors": 1, "metric": "pyfunc"}'},
+            "line 2: column 'params': metric: 'pyfunc' is not what method NN1 is configured with; "
+            "expected no such key",
+        ),
+        ({"params": "{oops"}, "line 2: column 'params': '{oops' is not JSON"),
+        ({"params": "[" * 100000}, "line 2: column 'params': JSON nested too deeply"),
+        (
+            {"n_train": "abc"},
+            "line 2: column 'n_train' is 'abc'; expected a whole number from 1 to 1000000",
+        ),
+        (
+            {"seed": None},
+            "line 2: column 'seed' is nan; expected a whole number from 0 to 2147483647",
+        ),
+        (
+            {"source": "../../etc"},
+            "line 2: column 'source' is '../../etc'; expected a data set name",
+        ),
+        (
+            {"n_chains": 10**9},
+            "line 2: column 'n_chains' is 1000000000.0; expected a whole number from 1 to 1024",
+        ),
+        ({"method": None}, "line 2: column 'method' is empty; expected a method of config/ci.yaml"),
+    ],
+    ids=[
+        "params-value",
+        "params-key",
+        "params-not-json",
+        "params-nested",
+        "n_train",
+        "seed",
+        "source",
+        "chains",
+        "method",
+    ],
+)
+def test_verify_checks_every_rows_columns_against_the_configuration(study, capsys, values, words):
+    _edit_row(study, 2, **values)
+    assert main(["verify", str(study)]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(f"error: {study} {words}"), err
+
+
+def test_an_empty_method_beside_an_unknown_one_and_a_bad_versions_value_are_one_line(study, capsys):
+    _edit_row(study, 2, method=None)
+    _edit_row(study, 3, method="XGB")
+    for command in ("check", "verify", "restamp"):
+        assert main([command, str(study)]) == 2
+        assert _one_error_line(capsys).startswith(
+            f"error: {study} line 2: column 'method' is empty"
+        )
+    _edit_row(study, 2, method="NN1")
+    _edit_row(study, 3, method="NN1", versions=5)
+    assert main(["check", str(study)]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {study} line 3: column 'versions' is '5'; expected a JSON object of package versions"
+    )
+
+
+def _config_folder(tmp_path, monkeypatch, text):
+    """A checkout's config folder in ``tmp_path`` (the real config.yaml and ``evil.yaml`` holding ``text``) that
+    the published tools read instead of the checkout's."""
+    from bsrbench import methods
+
+    folder = tmp_path / "checkout" / "config"
+    folder.mkdir(parents=True)
+    shutil.copy(methods.CONFIG / "config.yaml", folder / "config.yaml")
+    (folder / "evil.yaml").write_text(text)
+    monkeypatch.setattr(methods, "CONFIG", folder)
+    return folder
+
+
+def _use_configfiles(table, files):
+    prov = _prov(table)
+    prov["configfiles"] = files
+    freshness.provenance_path(table).write_text(json.dumps(prov))
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("methods: [NN1]\n", "key 'methods' is a list; expected a mapping"),
+        ("methods: {NN1: [x]}\n", "key 'methods.NN1' is a list; expected a mapping"),
+        ("run: 5\n", "key 'run' is 5; expected a list of method names"),
+        (
+            "run: [NN1]\nmethods: {NN1: {estimator: 5}}\n",
+            "key 'methods.NN1.estimator': estimator 5 (of type int); expected 'package.module:ClassName'",
+        ),
+    ],
+    ids=["methods-list", "method-list", "run-number", "estimator-number"],
+)
+def test_a_referenced_configuration_of_the_wrong_shape_is_one_line(
+    study, tmp_path, capsys, monkeypatch, text, words
+):
+    _config_folder(tmp_path, monkeypatch, text)
+    _use_configfiles(study, ["config/evil.yaml"])
+    for command in ("check", "verify", "restamp"):
+        assert main([command, str(study)]) == 2
+        err = _one_error_line(capsys)
+        assert words in err and "evil.yaml" in err, err
+
+
+@pytest.mark.parametrize("estimator", ["this.x:Y", "antigravity:Y", "no_such_package_q.mod:Y"])
+def test_check_imports_no_module_a_referenced_configuration_names(
+    study, tmp_path, capsys, monkeypatch, estimator
+):
+    """The staleness check finds an estimator's source file through the import system's finders: it imports
+    nothing, so a module with side effects on import (``this`` prints, ``antigravity`` opens a browser) stays
+    unimported."""
+    import sys
+
+    _config_folder(
+        tmp_path, monkeypatch, f"run: [NN1]\nmethods: {{NN1: {{estimator: '{estimator}'}}}}\n"
+    )
+    _use_configfiles(study, ["config/evil.yaml"])
+    top = estimator.split(".")[0].split(":")[0]
+    assert top not in sys.modules
+    assert main(["check", str(study)]) == 2
+    out = capsys.readouterr()
+    assert top not in sys.modules
+    assert "Beautiful is better" not in out.out + out.err
+    err = out.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"error: config key 'methods.NN1.estimator': estimator '{estimator}': "
+    ), err
+
+
+@pytest.mark.parametrize(
+    "files",
+    [
+        ["/etc/passwd"],
+        ["../outside.yaml"],
+        ["config/../../outside.yaml"],
+        ["config\\ci.yaml"],
+        ["README.md"],
+    ],
+)
+@pytest.mark.parametrize("command", ["check", "verify", "merge"])
+def test_configfiles_must_be_yaml_files_inside_the_checkout(
+    study, tmp_path, capsys, command, files
+):
+    _use_configfiles(study, files)
+    args = [str(study), str(tmp_path / "merged.csv")] if command == "merge" else [str(study)]
+    assert main([command, *args]) == 2
+    err = _one_error_line(capsys)
+    assert err.startswith(
+        f"error: {freshness.provenance_path(study)}: key 'configfiles': configfiles entry"
+    ), err
+    assert not (tmp_path / "merged.csv").exists()
+
+
+def test_a_deeply_nested_provenance_is_one_line(study, capsys):
+    freshness.provenance_path(study).write_text('{"methods": ' + "[" * 100000 + "]" * 100000 + "}")
+    for command in ("check", "verify", "restamp"):
+        assert main([command, str(study)]) == 2
+        assert _one_error_line(capsys).startswith(
+            f"error: {freshness.provenance_path(study)}: cannot read the provenance (JSON nested too deeply"
+        )

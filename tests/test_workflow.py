@@ -87,7 +87,7 @@ def test_dry_run(args):
         ("cv: {mode: sometimes}", r"sometimes"),
         (
             "methods: {GPR: {estimator: 'bsrbench.models.gpr:GPR'}}\nrun: [PM, GPR]",
-            r"'methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used .*No module named",
+            r"'methods\.GPR\.estimator': estimator 'bsrbench\.models\.gpr:GPR': cannot find module",
         ),
         (
             "methods: {PM: {params: {n_atom: 8}}}",
@@ -657,7 +657,7 @@ def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(
         out = res.stdout + res.stderr
         assert res.returncode != 0, out[-3000:]
         assert re.search(
-            r"methods\.GPR\.estimator': 'bsrbench\.models\.gpr:GPR' cannot be used", out
+            r"methods\.GPR\.estimator': estimator 'bsrbench\.models\.gpr:GPR': cannot find module", out
         ), out[-3000:]
     assert _snapshot(ci_run) == before
 

@@ -25,6 +25,7 @@ from .errors import InputError
 from .methods import registry
 from .paper import PAPER_ACTIVITIES
 from .results import KEY_COLUMNS, design_changes, study_of  # noqa: F401 (names of the aggregate table's checks)
+from .safeload import check_plain, read_yaml, yaml_text
 
 #: The JSON schemas of the configuration (a source checkout; the Snakefile passes its own folder).
 SCHEMAS = Path(__file__).resolve().parents[2] / "workflow" / "schemas"
@@ -95,8 +96,9 @@ def argv_problems(argv):
 
 def configfile_problem(path):
     """What is wrong with a ``--configfile`` file, one line (None if it exists, is readable and parses as a
-    YAML mapping). Snakemake reads these files before the Snakefile runs and answers a missing one with a
-    traceback, so ``bin/study`` asks this first."""
+    YAML mapping of ordinary size, :func:`bsrbench.safeload.read_yaml`). Snakemake reads these files before the
+    Snakefile runs, answers a missing one with a traceback and evaluates the Python expressions of one that sets
+    ``__use_yte__``, so ``bin/study`` asks this first."""
     p = Path(path)
     expected = "expected a YAML file such as config/paper.yaml"
     if not p.exists():
@@ -104,13 +106,9 @@ def configfile_problem(path):
     if not p.is_file():
         return f"--configfile {path}: not a file; {expected}"
     try:
-        data = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        return f"--configfile {path}: cannot be read ({exc.strerror}); {expected}"
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        where = getattr(exc, "problem_mark", None)
-        line = f" at line {where.line + 1}" if where is not None else ""
-        return f"--configfile {path}: not valid YAML{line} ({str(exc).splitlines()[0]}); {expected}"
+        data = read_yaml(p)
+    except InputError as exc:
+        return f"--configfile {exc}" + ("" if "; expected" in str(exc) else f"; {expected}")
     if data is None or data == {}:
         # Snakemake refuses an empty file with a WorkflowError; an empty mapping would override nothing
         return f"--configfile {path}: is empty (no configuration keys); {expected}"
@@ -160,11 +158,10 @@ def retype_cli_config(config, config_args, parsed):
         if not sep or not isinstance(parsed.get(key), (list, dict)):
             continue
         try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
+            value = yaml_text(text, f"--config {key}={text!r}")
+        except InputError as exc:
             raise InputError(
-                f"--config {key}: {text!r} is not valid YAML ({str(exc).splitlines()[0]}); expected e.g. "
-                f"{key}='[30, 100]' or {key}='{{name: value}}'"
+                f"{exc}; expected e.g. {key}='[30, 100]' or {key}='{{name: value}}'"
             ) from None
         update_config(config, {key: value})
     return config
@@ -303,7 +300,10 @@ def _key_path(parts):
 
 
 def _short(value, limit=80):
-    text = repr(value)
+    return _clip(repr(value), limit)
+
+
+def _clip(text, limit=160):
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
@@ -327,7 +327,7 @@ def schema_error_message(error, what="configuration"):
         if extra and known:
             key = _key_path([*parts, extra[0]])
             return (
-                f"{what}: unknown key {key!r} (value {_short(error.instance[extra[0]])}): {error.message}; "
+                f"{what}: unknown key {key!r} (value {_short(error.instance[extra[0]])}): {_clip(error.message)}; "
                 f"expected one of the keys {sorted(known)}"
             )
     where = f"key {_key_path(parts)!r}" if parts else "top level"
@@ -339,7 +339,7 @@ def schema_error_message(error, what="configuration"):
     if validator == "not" and schema.get("description"):
         return head + f"not allowed here; {schema['description']}"
     desc = f" ({schema['description']})" if schema.get("description") else ""
-    return head + f"{error.message}; expected {validator}: {_short(expected_value)}{desc}"
+    return head + f"{_clip(error.message)}; expected {validator}: {_short(expected_value)}{desc}"
 
 
 def config_validation_error(exc, what="configuration"):
@@ -419,10 +419,7 @@ def check_method_settings(methods, run, *, n_train=None, cv=None):
         try:
             accepted = estimator_parameters(path)
         except InputError as exc:
-            raise InputError(
-                f"config key 'methods.{name}.estimator': {path!r} cannot be used ({exc}); expected "
-                f"'package.module:ClassName' naming an importable estimator class"
-            ) from None
+            raise InputError(f"config key 'methods.{name}.estimator': {exc}") from None
         grid = setting.get("grid", "default")
         where_grid = f"methods.{name}.grid"
         if grid == "default":
@@ -1282,6 +1279,8 @@ def load_datasets(config, *, schema_dir=SCHEMAS, config_args=None, parsed_args=N
     (:func:`retype_cli_config`). Raises InputError naming the key, its value and what was expected.
     """
     schema_dir = Path(schema_dir)
+    # before anything walks it: Snakemake has read the files' YAML aliases as shared values, which expand on walking
+    check_plain(config, "configuration")
     retype_cli_config(config, config_args, parsed_args or {})
     retype_yaml_numbers(
         config, load_schema(schema_dir / "config.schema.yaml", schema_dir / "datasets.schema.yaml")

@@ -1,31 +1,118 @@
-"""Estimators named by dotted path (``"bsrbench.models.bsr:BayesianSR"``): import, build, parameters, grids.
+"""Estimators named by dotted path (``"bsrbench.models.bsr:BayesianSR"``): the one resolver, build, parameters,
+grids.
 
-Classes are imported only when used, so a missing model module fails only the jobs that need it.
+A path is data (a configuration value, a published row's column), so it is resolved in steps that run no code until
+the named thing is known to be an estimator class: :func:`parse_estimator_path` checks its form,
+:func:`locate_estimator` finds the module's source file through the import system's finders without importing
+anything (a module of Python's standard library is refused: it holds no regressor, and importing some of its
+modules has side effects), and :func:`load_estimator_class` imports that one module, takes the name from the
+module's own namespace (no module ``__getattr__``) and accepts it only if it is a class with ``fit``, ``predict``
+and ``get_params`` (a scikit-learn-style regressor). Only then do :func:`make_estimator` and the helpers below
+instantiate it. Classes are imported only when used, so a missing model module fails only the jobs that need it.
 """
 
 import importlib
 import inspect
+import re
+import sys
+from pathlib import Path
 
 from .errors import InputError
 
+#: ``package.module:ClassName``: dotted identifiers, one colon, a class name.
+_PATH = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
+#: What a class must have to be used as an estimator.
+PROTOCOL = ("fit", "predict", "get_params")
+_EXPECTED = "'package.module:ClassName' naming a scikit-learn-style regressor class (fit, predict, get_params)"
+
+
+def parse_estimator_path(path):
+    """``(module, class_name)`` of ``"package.module:ClassName"``; InputError naming the value otherwise."""
+    if not isinstance(path, str) or not _PATH.fullmatch(path):
+        shown = repr(path) if len(repr(path)) <= 80 else repr(path)[:77] + "..."
+        raise InputError(f"estimator {shown} (of type {type(path).__name__}); expected {_EXPECTED}")
+    module, _, name = path.partition(":")
+    return module, name
+
+
+def _find_spec(name, search):
+    """The module spec of ``name`` from the import system's finders (``sys.meta_path``, as ``import`` asks them),
+    with ``search`` the parent package's ``__path__`` (None: top level). Finders read the file system; no module
+    code runs. A module imported already answers from ``sys.modules``."""
+    loaded = sys.modules.get(name)
+    if loaded is not None:
+        return getattr(loaded, "__spec__", None)
+    for finder in sys.meta_path:
+        find = getattr(finder, "find_spec", None)
+        if find is None:
+            continue
+        spec = find(name, search)
+        if spec is not None:
+            return spec
+    return None
+
+
+def locate_estimator(path):
+    """The source file of the module of the estimator at ``path``, found without importing anything (not even its
+    parent packages). InputError naming the path when it is malformed, of the standard library, or not found."""
+    module, _ = parse_estimator_path(path)
+    parts = module.split(".")
+    if parts[0] in sys.stdlib_module_names or parts[0] in sys.builtin_module_names:
+        raise InputError(
+            f"estimator {path!r}: module {parts[0]!r} is of Python's standard library, which has no estimator; "
+            f"expected {_EXPECTED} of an installed package or of bsrbench.models"
+        )
+    search, spec = None, None
+    for k in range(len(parts)):
+        name = ".".join(parts[: k + 1])
+        spec = _find_spec(name, search)
+        if spec is None:
+            where = (
+                "" if k == 0 else f" (package {'.'.join(parts[:k])!r} has no module {parts[k]!r})"
+            )
+            raise InputError(
+                f"estimator {path!r}: cannot find module {module!r}{where}; expected {_EXPECTED}"
+            )
+        search = spec.submodule_search_locations
+        if search is None and k < len(parts) - 1:
+            raise InputError(
+                f"estimator {path!r}: {name!r} is a module, not a package, so it has no module {parts[k + 1]!r}; "
+                f"expected {_EXPECTED}"
+            )
+    if not spec.has_location or not spec.origin:
+        raise InputError(
+            f"estimator {path!r}: module {module!r} has no source file; expected {_EXPECTED}"
+        )
+    return Path(spec.origin)
+
 
 def load_estimator_class(path):
-    """Import ``"package.module:ClassName"`` and return the class; errors name the path."""
-    if not isinstance(path, str) or path.count(":") != 1:
-        raise InputError(f"estimator path must look like 'package.module:ClassName'; got {path!r}")
-    module_name, class_name = path.split(":")
+    """The estimator class at ``"package.module:ClassName"``, after :func:`locate_estimator`: its module imported,
+    the name taken from the module's namespace, and accepted only if it is a class with :data:`PROTOCOL`.
+    InputError naming the path and what it found otherwise; nothing is called."""
+    module_name, class_name = parse_estimator_path(path)
+    locate_estimator(path)
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
         raise InputError(
             f"estimator {path!r}: cannot import module {module_name!r} ({exc})"
-        ) from exc
-    try:
-        return getattr(module, class_name)
-    except AttributeError:
-        raise InputError(
-            f"estimator {path!r}: module {module_name!r} has no attribute {class_name!r}"
         ) from None
+    if class_name not in vars(module):
+        raise InputError(
+            f"estimator {path!r}: module {module_name!r} has no attribute {class_name!r}; expected {_EXPECTED}"
+        )
+    cls = vars(module)[class_name]
+    if not inspect.isclass(cls):
+        raise InputError(
+            f"estimator {path!r}: {class_name!r} is a {type(cls).__name__}, not a class; expected {_EXPECTED}"
+        )
+    missing = [a for a in PROTOCOL if not callable(inspect.getattr_static(cls, a, None))]
+    if missing:
+        raise InputError(
+            f"estimator {path!r}: class {class_name!r} has no {', '.join(missing)}; expected {_EXPECTED}"
+        )
+    return cls
 
 
 def make_estimator(path, params, random_state=None):

@@ -8,11 +8,11 @@ method is one estimator class and one configuration entry (docs/architecture.md)
 """
 
 import ast
-import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 
 from . import sources
+from .errors import InputError
 
 #: The module of the jobs' bodies: its imports, direct or not, are the job logic of every method.
 JOB_ENTRY = "bsrbench.jobs"
@@ -51,15 +51,17 @@ class Method:
 
     def source_files(self):
         """The source files of :meth:`modules` (and of the estimator's module when it is outside the package):
-        an edit of one reruns the method's jobs. Raises ValueError naming the method when its module is missing."""
-        spec = importlib.util.find_spec(self.module)
-        if spec is None or spec.origin is None:
-            raise ValueError(
-                f"config key 'methods.{self.name}.estimator': module {self.module!r} not found"
-            )
+        an edit of one reruns the method's jobs. Found without importing anything
+        (:func:`bsrbench.estimators.locate_estimator`); InputError naming the method when its module is missing."""
+        from .estimators import locate_estimator
+
+        try:
+            origin = locate_estimator(self.estimator)
+        except InputError as exc:
+            raise InputError(f"config key 'methods.{self.name}.estimator': {exc}") from None
         files = sources.module_files()
         out = [str(files[m]) for m in self.modules()]
-        return out if self.module in files else [str(Path(spec.origin)), *out]
+        return out if self.module in files else [str(origin), *out]
 
 
 def registry(methods, run):
@@ -94,11 +96,13 @@ def _class_constants(path, class_name):
 def paper_name(estimator):
     """The ``paper_name`` of the estimator class at ``estimator`` ("module:Class"), read from its source without
     importing it; None when it has none or the class is not found."""
-    module, _, cls = estimator.partition(":")
-    spec = importlib.util.find_spec(module)
-    if spec is None or spec.origin is None:
+    from .estimators import locate_estimator
+
+    try:
+        origin = locate_estimator(estimator)
+    except InputError:
         return None
-    return _class_constants(spec.origin, cls).get("paper_name")
+    return _class_constants(origin, estimator.partition(":")[2]).get("paper_name")
 
 
 def model_classes():
@@ -128,17 +132,95 @@ def job_preload():
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 
 
-def configured(study=None, folder=CONFIG):
+def configured(study=None, folder=None):
     """The registry of the methods run by ``config/config.yaml``, or by ``config/<study>.yaml`` read over it (as
     ``--configfile`` does): the methods of a published study, for tables made without its workflow."""
-    import yaml
+    folder = Path(folder or CONFIG)
+    own = Path(folder) / f"{study}.yaml"
+    files = [f"{Path(folder).name}/{own.name}"] if study and own.is_file() else []
+    return study_registry(study_config(files, folder), " + ".join(files) or "config/config.yaml")
 
-    methods, run = {}, []
-    for path in [Path(folder) / "config.yaml", Path(folder) / f"{study}.yaml"][: 2 if study else 1]:
+
+def repository_file(name, folder=None):
+    """The file ``name`` of a study's ``configfiles`` (relative to the checkout, the parent of ``folder``), refused
+    unless it is a relative path inside the checkout: the list comes from a published table's provenance."""
+    folder = Path(folder or CONFIG)
+    root = Path(folder).resolve().parent
+    where = f"configfiles entry {name!r}"
+    if not isinstance(name, str) or not name or Path(name).is_absolute() or "\\" in name:
+        raise InputError(
+            f"{where}: expected a path relative to the checkout, such as config/ablation.yaml"
+        )
+    path = (root / name).resolve()
+    if not path.is_relative_to(root):
+        raise InputError(
+            f"{where}: leads outside the checkout ({root}); expected a file of the checkout, such as "
+            "config/ablation.yaml"
+        )
+    if path.suffix not in (".yaml", ".yml"):
+        raise InputError(
+            f"{where}: expected a YAML configuration file (.yaml), such as config/ablation.yaml"
+        )
+    return path
+
+
+def study_config(files, folder=None):
+    """The configuration of a study: ``config/config.yaml`` with ``files`` (paths relative to the checkout, inside
+    it) read over it in order (top-level keys replaced, ``methods`` entries merged key by key), as ``--configfile``
+    reads them. Each file is read as untrusted YAML (:func:`bsrbench.safeload.read_yaml`). DataFileError naming a
+    file that is missing, not a YAML mapping, or whose ``methods``, a method entry or ``run`` has another shape."""
+    folder = Path(folder or CONFIG)
+    from .errors import DataFileError
+    from .safeload import read_yaml
+
+    out = {}
+    for path in [Path(folder) / "config.yaml", *(repository_file(f, folder) for f in files)]:
         if not path.is_file():
-            continue
-        data = yaml.safe_load(path.read_text()) or {}
-        for name, entry in (data.get("methods") or {}).items():
-            methods[name] = {**methods.get(name, {}), **(entry or {})}
-        run = data.get("run", run)
+            raise DataFileError(path, "no such file; expected a configuration file of the study")
+        data = read_yaml(path)
+        data = {} if data is None else data
+        if not isinstance(data, dict):
+            raise DataFileError(
+                path,
+                f"holds a {type(data).__name__}; expected a YAML mapping of configuration keys",
+            )
+        for k, v in data.items():
+            if k == "methods":
+                if not isinstance(v, (dict, type(None))):
+                    raise DataFileError(
+                        path,
+                        f"key 'methods' is a {type(v).__name__}; expected a mapping "
+                        "{method: {estimator, params, ...}}",
+                    )
+                methods = dict(out.get("methods") or {})
+                for name, entry in (v or {}).items():
+                    if not isinstance(entry, (dict, type(None))):
+                        raise DataFileError(
+                            path,
+                            f"key 'methods.{name}' is a {type(entry).__name__}; expected a "
+                            "mapping {estimator, params, ...}",
+                        )
+                    methods[name] = {**methods.get(name, {}), **(entry or {})}
+                out["methods"] = methods
+            elif k == "run" and not (isinstance(v, list) and all(isinstance(m, str) for m in v)):
+                raise DataFileError(path, f"key 'run' is {v!r}; expected a list of method names")
+            else:
+                out[k] = v
+    return out
+
+
+def study_registry(config, path="the configuration"):
+    """The method registry (:func:`registry`) of a :func:`study_config`; InputError naming ``path`` and a run method
+    without an entry or with an estimator that is not of the form ``package.module:ClassName``."""
+    from .estimators import parse_estimator_path
+
+    methods, run = config.get("methods") or {}, config.get("run") or []
+    missing = [m for m in run if m not in methods or "estimator" not in (methods[m] or {})]
+    if missing:
+        raise InputError(f"{path}: run names {missing} without a methods entry with an estimator")
+    for m in run:
+        try:
+            parse_estimator_path(methods[m]["estimator"])
+        except InputError as exc:
+            raise InputError(f"{path}: key 'methods.{m}.estimator': {exc}") from None
     return registry(methods, run)

@@ -290,17 +290,18 @@ PROVENANCE_COLUMNS = ("code_fingerprint", "git_commit", "written_at")
 PROJECT = Path(__file__).resolve().parents[2]
 
 
-def code_digests(estimator):
+def code_digests(estimator, method=None):
     """{relative path: sha256 of its bytes} of the source files a method's jobs run: the files of
     :meth:`bsrbench.methods.Method.source_files` for the estimator at ``estimator`` ("module:Class"), paths relative
     to the folder holding the package (``bsrbench/runs.py``), an estimator module outside the package by its file
-    name. Read afresh on every call: a job must fingerprint the code on disk, not a cached copy."""
+    name. Read afresh on every call: a job must fingerprint the code on disk, not a cached copy. ``method``: the
+    method's name, for the message of an estimator that cannot be found."""
     import hashlib
 
     from .methods import Method
     from .sources import ROOT
 
-    files = Method(name=estimator, label="", group="", order=0, estimator=estimator).source_files()
+    files = Method(name=method or estimator, label="", group="", order=0, estimator=estimator).source_files()
     out = {}
     for f in map(Path, files):
         rel = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.name

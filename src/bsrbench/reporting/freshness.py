@@ -24,6 +24,7 @@ one (its README line says so). A provenance of another shape is refused, naming 
 import contextlib
 import json
 import random
+import re
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -32,8 +33,9 @@ import pandas as pd
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
-from ..methods import registry as method_registry
+from ..methods import repository_file, study_config, study_registry
 from ..results import KEY_COLUMNS, code_digests, code_fingerprint, git_commit
+from ..safeload import json_text, read_json_file
 
 #: The tolerance of a rerun row against its published value (:mod:`.compare`, ``|a - b| <= atol + rtol |b|``):
 #: every fit but the GP's is deterministic and reruns bit for bit; the GP's hyper-parameters come from L-BFGS-B,
@@ -105,10 +107,11 @@ def read_provenance(table, required=False):
             )
         return {}
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        data = read_json_file(path)
+    except InputError as exc:
         raise DataFileError(
-            path, f"cannot read the provenance ({exc}); expected a JSON object"
+            path,
+            f"cannot read the provenance ({str(exc).removeprefix(f'{path}: ')}); expected a JSON object",
         ) from None
     return check_provenance(data, path)
 
@@ -140,6 +143,11 @@ def check_provenance(data, path):
             files,
             'a list of configuration files (e.g. ["config/ablation.yaml"])',
         )
+    for f in files or []:
+        try:
+            repository_file(f)
+        except InputError as exc:
+            raise DataFileError(path, f"key 'configfiles': {exc}") from None
     methods = data.get("methods")
     if "methods" in data and not isinstance(methods, dict):
         raise _shape_error(
@@ -195,7 +203,7 @@ def today(registry):
     """{method: (code fingerprint, {file: sha256})} of today's code for the methods of ``registry``."""
     out = {}
     for name, m in registry.items():
-        digests = code_digests(m.estimator)
+        digests = code_digests(m.estimator, name)
         out[name] = (code_fingerprint(digests), digests)
     return out
 
@@ -206,15 +214,26 @@ def _versions_today():
     return package_versions()
 
 
-def _version_changes(df):
-    """Sentences naming the packages whose version in the rows differs from today's environment."""
+def _version_changes(table, df):
+    """Sentences naming the packages whose version in the rows differs from today's environment. InputError naming
+    the line of a ``versions`` value that is not a JSON object of package versions."""
     now = _versions_today()
     seen = {}
-    for v in df["versions"].dropna().unique() if "versions" in df.columns else []:
-        try:
-            got = json.loads(v)
-        except ValueError:
+    values = df["versions"] if "versions" in df.columns else {}
+    first = {}
+    for idx, v in values.items():
+        if v is None or (isinstance(v, float) and np.isnan(v)) or v in first:
             continue
+        first[v] = idx
+    for v, idx in first.items():
+        where = f"{_line(table, idx)}: column 'versions'"
+        got = json_text(v, where) if isinstance(v, str) else None
+        if not isinstance(got, dict) or not all(
+            isinstance(x, (str, type(None))) for x in got.values()
+        ):
+            raise InputError(
+                f"{where} is {str(v)[:60]!r}; expected a JSON object of package versions"
+            )
         for k in VERSION_KEYS:
             if k in got and got[k] != now.get(k):
                 seen.setdefault(k, set()).add(got[k])
@@ -239,11 +258,9 @@ def check_table(table, *, digests=None):
     if prov.get("historical"):
         return [f"{name}: historical: {prov['historical']}"], False
     files = configfiles(table, prov)
-    try:
-        registry = study_registry(study_config(files), " + ".join(files))
-    except InputError as exc:
-        return [f"{name}: cannot tell its methods: {exc}"], True
+    registry = study_registry(study_config(files), " + ".join(files))
     lines, stale = [], False
+    _named_methods(name, df, registry, files)
     unknown = sorted(set(df["method"]) - set(registry))
     for m in unknown:
         lines.append(
@@ -255,7 +272,7 @@ def check_table(table, *, digests=None):
             f"{name}: stale: no code fingerprints (made before the fingerprints of issue 36); rerun or restamp it"
         )
         return lines, True
-    versions = _version_changes(df)
+    versions = _version_changes(name, df)
     now = digests if digests is not None else today(registry)
     for m in [m for m in registry if m in set(df["method"])]:
         rows = df[df["method"] == m]
@@ -298,103 +315,175 @@ def configfiles(table, prov=None):
     return list(prov.get("configfiles") or [f"config/{study_name(table)}.yaml"])
 
 
-def study_config(files):
-    """The configuration of a published study: ``config/config.yaml`` with ``files`` (paths relative to the
-    project) read over it in order (top-level keys replaced, ``methods`` entries merged key by key), as
-    ``--configfile`` reads them. DataFileError naming a file that is missing or not a YAML mapping."""
-    import yaml
-
-    from ..methods import CONFIG
-
-    out = {}
-    for path in [CONFIG / "config.yaml", *(CONFIG.parent / f for f in files)]:
-        try:
-            data = yaml.safe_load(Path(path).read_text()) or {}
-        except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
-            reason = str(exc).splitlines()[0]
-            raise DataFileError(path, f"cannot read the study's configuration ({reason})") from None
-        if not isinstance(data, dict):
-            raise DataFileError(path, "expected a YAML mapping of configuration keys")
-        for k, v in data.items():
-            if k == "methods":
-                methods = dict(out.get("methods") or {})
-                for name, entry in (v or {}).items():
-                    methods[name] = {**methods.get(name, {}), **(entry or {})}
-                out["methods"] = methods
-            else:
-                out[k] = v
-    return out
-
-
-def study_registry(config, path="the configuration"):
-    """The method registry (:func:`bsrbench.methods.registry`) of a :func:`study_config`; InputError naming a run
-    method without an entry."""
-    methods, run = config.get("methods") or {}, config.get("run") or []
-    missing = [m for m in run if m not in methods or "estimator" not in (methods[m] or {})]
-    if missing:
-        raise InputError(f"{path}: run names {missing} without a methods entry with an estimator")
-    return method_registry(methods, run)
-
-
 def _value(row, col, default=None):
     v = row.get(col, default)
     return default if v is None or (isinstance(v, float) and np.isnan(v)) else v
 
 
-def rerun_row(row, config, features_folder="results/features"):
-    """The result row today's code makes for the published ``row`` (a dict of a table's row): the same split and
-    method seed, the row's stored ``estimator``, ``params`` (the CV's choice, so no CV is rerun), pose transform and
-    chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``: :func:`study_config`).
-    BLAS runs on one thread, as in the study's fit jobs (``threads: 1``): on two it sums in another order, and a
-    last-bit difference can move a test frame across its conformal interval's edge (coverage is a count)."""
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1):
-        return _rerun_row(row, config, features_folder)
+#: What a published row's columns may hold, checked before a row is rerun (the rest comes from the configuration).
+_PROTOCOLS = ("random", "contiguous", "cross_trial")
+_POSE_TRANSFORMS = ("heading", "none")
+_CV_MODES = ("per_size", "per_job", "none")
+#: A source or activity name: it becomes a path under the features folder.
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+#: Most chains a published row may pool.
+_MAX_CHAINS = 1024
 
 
-def _rerun_row(row, config, features_folder):
-    from ..io import load_features
-    from ..runs import pool_chains, run_chain, run_job
+def _same(a, b):
+    """Whether a configured value ``a`` and a row's JSON value ``b`` are the same setting (YAML 1.1 leaves ``1e-3``
+    a string, which the configuration check reads as the number)."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, str) and not isinstance(b, str):
+        with contextlib.suppress(ValueError):
+            a = float(a)
+    return a == b
+
+
+def row_settings(row, config, where):
+    """The checked settings of a published ``row`` (a dict of a table's row) for a rerun: ``{spec, estimator, params,
+    n_chains, conformal, cv}``, the estimator and settings from the study's ``config`` (:func:`study_config`), the
+    split's key and the CV's choice from the row. InputError naming ``where`` (table and line), the column, its
+    value and what was expected when a column is missing, of another type or range, or when the row's
+    ``estimator`` or ``params`` are not what the configuration runs: a published row is data, and only the
+    configuration names code."""
+    from ..estimators import default_grid
     from ..splits import JobSpec
 
+    def bad(col, expected):
+        value = row.get(col)
+        shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+        return InputError(f"{where}: column {col!r} is {shown}; expected {expected}")
+
+    def integer(col, low, high, default=None):
+        v = _value(row, col, default)
+        if isinstance(v, str):
+            with contextlib.suppress(ValueError):
+                v = int(v)
+        if isinstance(v, float) and v.is_integer():
+            v = int(v)
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not low <= v <= high:
+            raise bad(col, f"a whole number from {low} to {high}")
+        return int(v)
+
+    def choice(col, options, default=None):
+        v = _value(row, col, default)
+        if v not in options:
+            raise bad(col, f"one of {list(options)}")
+        return v
+
+    method = _value(row, "method")
+    methods = config.get("methods") or {}
+    if not isinstance(method, str) or method not in methods:
+        raise bad("method", f"a method of the study's configuration ({', '.join(methods)})")
+    m = methods[method]
+    if row.get("estimator") != m["estimator"]:
+        raise bad(
+            "estimator",
+            f"{m['estimator']!r}, the estimator of method {method} in the configuration",
+        )
+    for col in ("source", "activity"):
+        v = _value(row, col)
+        if not isinstance(v, str) or not _NAME.fullmatch(v):
+            raise bad(col, "a data set name (letters, digits, '_', '-', '.')")
+    params = json_text(_value(row, "params", "{}"), f"{where}: column 'params'")
+    if not isinstance(params, dict):
+        raise bad("params", "a JSON object {parameter: value}")
+    fixed = dict(m.get("params") or {})
+    grid = m.get("grid", "default")
+    grid = default_grid(m["estimator"]) if grid == "default" else dict(grid or {})
+    for k, v in params.items():
+        if k in grid and any(_same(g, v) for g in grid[k]):
+            continue
+        if k in fixed and _same(fixed[k], v):
+            continue
+        allowed = (
+            f"the grid's {grid[k]!r}"
+            if k in grid
+            else f"{fixed[k]!r}"
+            if k in fixed
+            else "no such key"
+        )
+        raise InputError(
+            f"{where}: column 'params': {k}: {v!r} is not what method {method} is configured with; expected "
+            f"{allowed} (methods.{method}.params and grid)"
+        )
+    lacking = sorted(set(fixed) - set(params))
+    if lacking:
+        raise InputError(
+            f"{where}: column 'params' lacks {lacking}, which method {method} is configured with "
+            f"(methods.{method}.params); expected the configured parameters with the CV's choice"
+        )
+    level = _value(row, "conformal_level")
+    if level is not None:
+        try:
+            level = float(level)
+        except (TypeError, ValueError):
+            level = None
+        if level is None or not 0.0 < level < 1.0:
+            raise bad("conformal_level", "a number between 0 and 1, or empty")
     spec = JobSpec(
         source=row["source"],
         activity=row["activity"],
-        method=row["method"],
-        n_train=int(row["n_train"]),
-        seed=int(row["seed"]),
-        protocol=row["protocol"],
-        pose_transform=_value(row, "pose_transform", config.get("pose_transform", "heading")),
+        method=method,
+        n_train=integer("n_train", 1, 10**6),
+        seed=integer("seed", 0, 2**31 - 1),
+        protocol=choice("protocol", _PROTOCOLS),
+        pose_transform=choice(
+            "pose_transform", _POSE_TRANSFORMS, config.get("pose_transform", "heading")
+        ),
         min_test=int(config.get("min_test", 100)),
         gap=int(config.get("gap", 30)),
-        paper_activity=_value(row, "paper_activity", "") or "",
+        paper_activity=str(_value(row, "paper_activity", "") or ""),
     )
-    if spec.method_seed != int(row["method_seed"]):
-        raise InputError(
-            f"{spec}: method seed {spec.method_seed} today, {int(row['method_seed'])} in the table"
-        )
+    if spec.method_seed != integer("method_seed", 0, 2**32 - 1):
+        raise bad("method_seed", f"{spec.method_seed}, the seed today's code derives for {spec}")
+    return {
+        "spec": spec,
+        "estimator": m["estimator"],
+        "params": params,
+        "n_chains": integer("n_chains", 1, _MAX_CHAINS, 1),
+        "conformal": None
+        if level is None
+        else {"level": level, "params": dict(m.get("cv_params") or {})},
+        "cv": choice("cv", _CV_MODES, "none"),
+    }
+
+
+def rerun_row(row, config, features_folder="results/features", where="the row"):
+    """The result row today's code makes for the published ``row`` (a dict of a table's row): the same split and
+    method seed, the configured estimator with the row's ``params`` (the CV's choice, so no CV is rerun), pose
+    transform and chains, the study's ``min_test``, ``gap`` and split-conformal settings (``config``:
+    :func:`study_config`), all checked first (:func:`row_settings`). BLAS runs on one thread, as in the study's
+    fit jobs (``threads: 1``): on two it sums in another order, and a last-bit difference can move a test frame
+    across its conformal interval's edge (coverage is a count)."""
+    from threadpoolctl import threadpool_limits
+
+    settings = row_settings(row, config, where)
+    with threadpool_limits(limits=1):
+        return _rerun_row(settings, features_folder)
+
+
+def _rerun_row(settings, features_folder):
+    from ..io import load_features
+    from ..runs import pool_chains, run_chain, run_job
+
+    spec = settings["spec"]
     path = Path(features_folder) / spec.source / f"{spec.activity}.npz"
     if not path.is_file():
         raise DataFileError(path, "no features to rerun the row on; run the study's features first")
     features = load_features(path)
-    params = json.loads(row["params"]) if isinstance(row.get("params"), str) else {}
-    method = (config.get("methods") or {}).get(spec.method, {})
-    level = _value(row, "conformal_level")
-    conformal = (
-        None
-        if level is None
-        else {"level": float(level), "params": dict(method.get("cv_params") or {})}
-    )
-    n_chains = int(_value(row, "n_chains", 1))
-    kw = dict(estimator=row["estimator"], params=params)
-    if n_chains > 1:
+    kw = dict(estimator=settings["estimator"], params=settings["params"])
+    conformal = settings["conformal"]
+    if settings["n_chains"] > 1:
         chains = [
-            run_chain(spec, features, chain=c, conformal=conformal, **kw) for c in range(n_chains)
+            run_chain(spec, features, chain=c, conformal=conformal, **kw)
+            for c in range(settings["n_chains"])
         ]
-        new, _ = pool_chains(spec, features, chains, cv_mode=row.get("cv", "none"), **kw)
+        new, _ = pool_chains(spec, features, chains, cv_mode=settings["cv"], **kw)
     else:
-        new, _ = run_job(spec, features, cv_mode=row.get("cv", "none"), conformal=conformal, **kw)
+        new, _ = run_job(spec, features, cv_mode=settings["cv"], conformal=conformal, **kw)
     return new
 
 
@@ -459,9 +548,25 @@ def sample_rows(df, k, seed, methods=None):
     return df.iloc[sorted(idx)]
 
 
+def _line(table, idx):
+    """Where a row of a published table is: its line in the CSV file (the header is line 1)."""
+    return f"{table} line {int(idx) + 2}"
+
+
+def _named_methods(table, df, registry, files):
+    """Refuse a table with a row without a method name."""
+    blank = [i for i, v in df["method"].items() if not isinstance(v, str) or not v]
+    if blank:
+        raise InputError(
+            f"{_line(table, blank[0])}: column 'method' is empty; expected a method of {' + '.join(files)} "
+            f"({', '.join(registry)})"
+        )
+
+
 def _known_methods(table, df, registry, files):
-    """Refuse a table with rows of a method that its study's configuration does not run: such a row cannot be
-    rerun (its estimator and settings are not configured)."""
+    """Refuse a table with a row without a method or with rows of a method that its study's configuration does not
+    run: such a row cannot be rerun (its estimator and settings are not configured)."""
+    _named_methods(table, df, registry, files)
     unknown = sorted(set(df["method"]) - set(registry))
     if unknown:
         raise InputError(
@@ -470,16 +575,28 @@ def _known_methods(table, df, registry, files):
         )
 
 
+def _checked_table(table, required_provenance):
+    """``(rows, provenance, configfiles, config, registry)`` of a table to rerun rows of, every row checked against
+    its study's configuration (:func:`row_settings`) before any is rerun."""
+    df = read_table(table)
+    prov = read_provenance(table, required=required_provenance)
+    files = configfiles(table, prov)
+    config = study_config(files)
+    registry = study_registry(config, " + ".join(files))
+    _known_methods(table, df, registry, files)
+    for idx, row in df.iterrows():
+        row_settings(row.to_dict(), config, _line(table, idx))
+    return df, prov, files, config, registry
+
+
 def verify(table, k, seed=0, *, log=print, features_folder="results/features"):
     """Rerun ``k`` random rows of ``table`` with today's code and print one verdict per row; True if all equal."""
-    df = read_table(table)
-    files = configfiles(table, read_provenance(table, required=True))
-    config = study_config(files)
-    _known_methods(table, df, study_registry(config, " + ".join(files)), files)
+    df, _, _, config, _ = _checked_table(table, required_provenance=True)
     ok = True
-    for _, row in sample_rows(df, k, seed).iterrows():
+    for idx, row in sample_rows(df, k, seed).iterrows():
         row = row.to_dict()
-        res, largest = compare_row(row, rerun_row(row, config, features_folder))
+        new = rerun_row(row, config, features_folder, _line(table, idx))
+        res, largest = compare_row(row, new)
         ok &= res.equal
         log(verdict(row, res, largest))
     return ok
@@ -490,12 +607,7 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="result
     it; if every one equals its published value within the tolerance, write today's fingerprint into the method's
     rows and its digests, commit and the rows rerun into the provenance. Methods with a differing row stay stale.
     Returns {method: (restamped?, largest difference over the rerun rows' numeric columns)}."""
-    df = read_table(table)
-    prov = read_provenance(table)
-    files = configfiles(table, prov)
-    config = study_config(files)
-    registry = study_registry(config, " + ".join(files))
-    _known_methods(table, df, registry, files)
+    df, prov, files, config, registry = _checked_table(table, required_provenance=False)
     now = today(registry)
     prov.setdefault("study", study_name(table))
     prov.setdefault("configfiles", files)
@@ -515,9 +627,11 @@ def restamp(table, k=RESTAMP_ROWS, seed=0, *, log=print, features_folder="result
     for m in todo:
         rows = sample_rows(df, k, seed, methods=[m])
         equal, worst, rerun = True, 0.0, []
-        for _, row in rows.iterrows():
+        for idx, row in rows.iterrows():
             row = row.to_dict()
-            res, (d, _) = compare_row(row, rerun_row(row, config, features_folder))
+            res, (d, _) = compare_row(
+                row, rerun_row(row, config, features_folder, _line(table, idx))
+            )
             log(verdict(row, res, (d, _)))
             equal &= res.equal
             worst = max(worst, d)
