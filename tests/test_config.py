@@ -379,13 +379,14 @@ def test_dataset_checks_name_the_entry(entry, match):
         load_datasets(config)
 
 
-def test_frame_step_on_mat_and_an_empty_codebook_are_refused():
+def test_first_frame_on_motion_capture_and_an_empty_codebook_are_refused():
     from bsrbench.config import load_datasets
 
     config = _merged()
-    config["datasets"]["hsc"]["golf"]["frame_step"] = 2
+    config["datasets"]["mocap"]["walk"]["first_frame"] = 2
     with pytest.raises(
-        InputError, match=r"datasets.hsc.golf: frame_step applies to bvh/amc trials; got 2"
+        InputError,
+        match=r"datasets.mocap.walk: first_frame applies to format mat; got 2 for format bvh",
     ):
         load_datasets(config)
     config = _merged()

@@ -31,6 +31,11 @@ def test_metric_is_mean_of_per_angle_rms_with_wrapping():
     # The authors' form acos(cos(a - b)) gives the same RMS.
     acos_form = np.sqrt(np.mean(np.rad2deg(np.arccos(np.cos(np.deg2rad(pred - y)))) ** 2, axis=0))
     np.testing.assert_allclose(rms, acos_form, rtol=1e-6)
+    # Without wrapping the full turns count: the plain difference, by hand.
+    plain = np.sqrt(np.mean((pred - y) ** 2, axis=0))
+    np.testing.assert_allclose(per_angle_rms(y, pred, wrap=False), plain, rtol=1e-12)
+    assert mean_angle_error(y, pred, wrap=False) == pytest.approx(plain.mean())
+    assert mean_angle_error(y, pred, wrap=False) > 10 * mean_angle_error(y, pred)
 
 
 def test_metric_rejects_shape_mismatch_and_nan():

@@ -428,3 +428,23 @@ def test_navigate_is_counted_as_480_frames_before_it_is_prepared(monkeypatch):
     expect = len(range(int(d["skip_frames"]), len(numbers), int(d["frame_step"])))
     assert count_motion_frames(d["files"], d["skip_frames"], d["frame_step"]) == expect == 480
     assert data.data_frames("mocap", "navigate") == 480
+
+
+def test_mat_rows_from_first_frame_every_frame_step(tmp_path):
+    import scipy.io
+
+    from bsrbench.datasets import count_mat_rows, load_feature_mat
+
+    rng = np.random.default_rng(0)
+    X, Y = rng.normal(size=(70, 4)), rng.uniform(-180, 180, size=(70, 6))
+    path = tmp_path / "m.mat"
+    scipy.io.savemat(path, {"X": X, "Y": Y})
+    assert count_mat_rows(path) == 70
+    late = load_feature_mat(path, n_frames=60, drop_y_columns=3, first_frame=10)
+    assert np.array_equal(late.frames, np.arange(10, 70)) and np.array_equal(late.X, X[10:])
+    half = load_feature_mat(
+        path, n_frames=60, drop_y_columns=3, frame_step=2, fewer_frames="use_all"
+    )
+    assert np.array_equal(half.frames, np.arange(0, 70, 2)) and np.array_equal(half.Y, Y[::2, 3:])
+    with pytest.raises(InputError, match="has 35 usable frames but n_frames = 60"):
+        load_feature_mat(path, n_frames=60, drop_y_columns=3, frame_step=2)

@@ -47,3 +47,36 @@ def test_every_method_sees_the_same_split():
         JobSpec("hsc", "golf", "PM", 60, 3).method_seed
         != JobSpec("hsc", "golf", "RVM", 60, 3).method_seed
     )
+
+
+@pytest.mark.parametrize("n_train, gap", [(30, 5), (60, 0), (100, 5), (200, 5), (70, 30)])
+def test_blocked_splits_train_in_runs_and_test_away_from_them(n_train, gap):
+    from bsrbench.splits import BLOCK, max_n_train
+
+    for seed in range(20):
+        train, test = make_split(600, n_train, protocol="blocked", seed=seed, gap=gap)
+        assert len(train) == n_train and len(set(train)) == n_train
+        runs = np.split(train, np.flatnonzero(np.diff(train) != 1) + 1)
+        # runs start on a slot boundary and are whole slots (runs of adjacent slots merge), the last one cut short
+        assert all(r[0] % BLOCK == 0 for r in runs)
+        assert sum(len(r) % BLOCK != 0 for r in runs) <= 1
+        distance = np.abs(test[:, None] - train[None, :]).min(axis=1)
+        assert distance.min() > gap
+        kept = np.setdiff1d(np.arange(600), train)
+        near = np.abs(kept[:, None] - train[None, :]).min(axis=1) <= gap
+        assert np.array_equal(np.sort(test), kept[~near])  # every frame far enough is a test frame
+    assert n_train <= max_n_train(600, protocol="blocked", gap=gap)
+
+
+def test_blocked_max_n_train_is_a_guarantee_and_too_many_runs_are_refused():
+    from bsrbench.splits import max_n_train
+
+    limit = max_n_train(600, protocol="blocked", gap=30)  # 500 // 70 = 7 runs of 10
+    assert limit == 70
+    for seed in range(50):  # the worst placement still leaves min_test frames
+        assert len(make_split(600, limit, protocol="blocked", seed=seed, gap=30)[1]) >= 100
+    with pytest.raises(
+        InputError, match="blocked protocol: n_train=200 in runs of 10 with gap=30 leaves"
+    ):
+        for seed in range(50):
+            make_split(600, 200, protocol="blocked", seed=seed, gap=30)

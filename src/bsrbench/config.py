@@ -607,9 +607,10 @@ def check_datasets(datasets, codebook_files):
             raise InputError(
                 f"{where}: fewer_frames: use_all needs frame_selection: first; got {d['frame_selection']!r}"
             )
-        if d["frame_step"] != 1 and d["format"] not in MOTION_FORMATS:
+        if d["first_frame"] != 0 and d["format"] in MOTION_FORMATS:
             raise InputError(
-                f"{where}: frame_step applies to bvh/amc trials; got {d['frame_step']} for format mat"
+                f"{where}: first_frame applies to format mat; got {d['first_frame']} for format "
+                f"{d['format']} (use skip_frames for motion capture trials)"
             )
         if d["joint_map"] is not None and len(d["joint_map"]) == 0:
             raise InputError(f"{where}: joint_map is an empty list; expected joint names or null")
@@ -631,14 +632,17 @@ def data_frames(entry):
     """Frames a data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its trials
     give, counted from the BVH headers or the AMC frame lines; n_frames when that cannot be counted before the
     files exist."""
-    from .datasets import count_motion_frames
+    from .datasets import count_mat_rows, count_motion_frames
 
     n = int(entry["n_frames"])
-    if entry["format"] in MOTION_FORMATS and entry["fewer_frames"] == "use_all":
+    if entry["fewer_frames"] != "use_all":
+        return n
+    if entry["format"] in MOTION_FORMATS:
         have = count_motion_frames(entry["files"], entry["skip_frames"], entry["frame_step"])
-        if have is not None:
-            return min(n, have)
-    return n
+    else:
+        rows = count_mat_rows(entry["files"][0], entry["x_key"]) if entry["files"] else None
+        have = None if rows is None else len(range(entry["first_frame"], rows, entry["frame_step"]))
+    return n if have is None else min(n, have)
 
 
 def check_data_files(entry):
@@ -702,9 +706,10 @@ def skipped_cells(frames, pairs, protocols, n_train, min_test, gap):
             limit = max_n_train(frames[(s, a)], protocol=protocol, min_test=min_test, gap=gap)
             for n in n_train:
                 if n > limit:
-                    after_gap = (
-                        f" (fewer after the gap of {gap})" if protocol == "contiguous" else ""
-                    )
+                    after_gap = {
+                        "contiguous": f" (fewer after the gap of {gap})",
+                        "blocked": f" (fewer after the gaps of {gap} around its runs)",
+                    }.get(protocol, "")
                     out[(protocol, s, a, int(n))] = (
                         f"N = {n} skipped: the {frames[(s, a)]} frames leave at most "
                         f"{max(frames[(s, a)] - n, 0)} test frames{after_gap}, fewer than min_test = {min_test}"
@@ -888,7 +893,17 @@ class DataSets:
     def mat_params(self, source, activity):
         """Keyword arguments of bsrbench.datasets.build_mat_features for one data set."""
         d = self.dataset(source, activity)
-        keys = ("n_frames", "frame_selection", "drop_y_columns", "x_key", "y_key", "checksums")
+        keys = (
+            "n_frames",
+            "frame_selection",
+            "drop_y_columns",
+            "x_key",
+            "y_key",
+            "checksums",
+            "first_frame",
+            "frame_step",
+            "fewer_frames",
+        )
         return {**{k: d[k] for k in keys}, "meta": self.features_meta(source, activity)}
 
     def render_params(self):
@@ -905,6 +920,14 @@ class DataSets:
         d = self.dataset(source, activity)
         if d["format"] not in MOTION_FORMATS:
             name = Path(d["files"][0]).name
+            first, step = int(d["first_frame"]), int(d["frame_step"])
+            if first or step > 1:
+                every = f"every {step}th " if step > 1 else ""
+                name = f"{every}row of {name} from row {first}"
+                n = data_frames(d)
+                if d["frame_selection"] == "first":
+                    return f"{name}, first {n}"
+                return f"{name}, {n} spread evenly"
             if d["frame_selection"] == "first":
                 return f"rows of {name}, first {d['n_frames']}"
             return f"{d['n_frames']} rows of {name} spread evenly"

@@ -288,12 +288,16 @@ def load_feature_mat(
     y_key="Y",
     checksums=None,
     angle_names=None,
+    first_frame=0,
+    frame_step=1,
+    fewer_frames="error",
 ):
     """Load a .mat file holding ``X`` and ``Y`` (one row per frame) as a :class:`FeatureSet`.
 
     The first ``drop_y_columns`` columns of Y are dropped (the authors' files carry the root translation there).
-    ``checksums``: see :func:`verify_checksum`. ``angle_names``: names of the kept Y columns (default
-    ``angle01`` ...).
+    Frames: the rows ``first_frame, first_frame + frame_step, ...``, of which :func:`select_frames` keeps
+    ``n_frames`` (``fewer_frames``: when fewer are left). ``checksums``: see :func:`verify_checksum`.
+    ``angle_names``: names of the kept Y columns (default ``angle01`` ...).
     """
     import scipy.io
 
@@ -321,7 +325,10 @@ def load_feature_mat(
             f"{path}: drop_y_columns={drop_y_columns} but {y_key} has {Y.shape[1]} columns"
         )
     Y = Y[:, drop_y_columns:]
-    idx = select_frames(X.shape[0], n_frames, frame_selection, str(path))
+    rows = np.arange(int(first_frame), X.shape[0], int(frame_step))
+    if rows.size == 0:
+        raise InputError(f"{path}: first_frame={first_frame} but the file has {X.shape[0]} rows")
+    idx = rows[select_frames(rows.size, n_frames, frame_selection, str(path), fewer=fewer_frames)]
     X, Y = X[idx], Y[idx]
     check_features(X, Y, str(path), names=(x_key, y_key), rows=idx, y_column_offset=drop_y_columns)
     if angle_names is None:
@@ -331,6 +338,18 @@ def load_feature_mat(
     return FeatureSet(
         X, Y, idx, list(angle_names), {"files": [str(path)], "sha256": [sha256_file(path)]}
     )
+
+
+def count_mat_rows(path, x_key="X"):
+    """Rows of the matrix ``x_key`` of a .mat file, read from its header (None if it cannot be read)."""
+    import scipy.io
+
+    try:
+        shapes = {name: shape for name, shape, _ in scipy.io.whosmat(path)}
+    except Exception:  # scipy raises several types for a missing or non-MAT file
+        return None
+    shape = shapes.get(x_key)
+    return int(shape[0]) if shape else None
 
 
 def save_features(path, fs):
@@ -359,10 +378,22 @@ def build_mat_features(
     checksums=None,
     n_features=None,
     meta=None,
+    first_frame=0,
+    frame_step=1,
+    fewer_frames="error",
 ):
     """Load a feature .mat (verified) and write it as a features ``.npz``. Returns the FeatureSet."""
     fs = load_feature_mat(
-        mat_path, n_frames, frame_selection, drop_y_columns, x_key, y_key, checksums
+        mat_path,
+        n_frames,
+        frame_selection,
+        drop_y_columns,
+        x_key,
+        y_key,
+        checksums,
+        first_frame=first_frame,
+        frame_step=frame_step,
+        fewer_frames=fewer_frames,
     )
     check_features(fs.X, fs.Y, str(mat_path), n_features=n_features)
     fs.meta.update(meta or {})

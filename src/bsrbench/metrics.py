@@ -35,16 +35,17 @@ def check_pair(y_true, y_pred):
     return y_true, y_pred
 
 
-def per_angle_rms(y_true, y_pred):
-    """RMS over frames of the wrapped angle difference, one value per angle (degrees)."""
+def per_angle_rms(y_true, y_pred, wrap=True):
+    """RMS over frames of the wrapped angle difference, one value per angle (degrees); ``wrap=False``: of the
+    plain difference, as a metric that ignores the circle scores it (a sensitivity of the error's definition)."""
     y_true, y_pred = check_pair(y_true, y_pred)
-    d = wrap_degrees(y_pred - y_true)
+    d = wrap_degrees(y_pred - y_true) if wrap else y_pred - y_true
     return np.sqrt(np.mean(d * d, axis=0))
 
 
-def mean_angle_error(y_true, y_pred):
+def mean_angle_error(y_true, y_pred, wrap=True):
     """The paper's error: mean over angles of the per-angle RMS (degrees)."""
-    return float(np.mean(per_angle_rms(y_true, y_pred)))
+    return float(np.mean(per_angle_rms(y_true, y_pred, wrap)))
 
 
 def interval_coverage(y_true, y_mean, y_std, level=0.9):

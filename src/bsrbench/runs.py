@@ -315,6 +315,7 @@ def _score(
         "split_seed": split_seed(spec.source, spec.activity, spec.n_train, spec.seed),
         "method_seed": spec.method_seed,
         "error": mean_angle_error(Y_true, Y_pred),
+        "error_unwrapped": mean_angle_error(Y_true, Y_pred, wrap=False),
         "train_error": train_error,
         "per_angle_rms": rms.tolist(),
         "fit_seconds": fit_seconds,

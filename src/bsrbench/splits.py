@@ -2,7 +2,9 @@
 
 Protocols: ``random`` (the paper's: N random frames train, the rest test), ``contiguous`` (one block of N
 frames trains, frames farther than ``gap`` from it test, so no test frame has a near-duplicate training
-neighbour) and ``cross_trial`` (whole trials held out as test; needs the trial of each frame).
+neighbour), ``blocked`` (between the two: the training frames come in runs of :data:`BLOCK` consecutive frames
+at random places, the test frames are those farther than ``gap`` from every run) and ``cross_trial`` (whole
+trials held out as test; needs the trial of each frame).
 """
 
 from dataclasses import dataclass
@@ -12,7 +14,9 @@ import numpy as np
 from .errors import InputError
 from .seeds import method_seed, split_seed
 
-PROTOCOLS = ("random", "contiguous", "cross_trial")
+PROTOCOLS = ("random", "contiguous", "blocked", "cross_trial")
+#: Length of a run of training frames of the ``blocked`` protocol (a third of a second at 30 fps).
+BLOCK = 10
 
 
 def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, gap=30, trials=None):
@@ -21,6 +25,9 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     ``random``: ``n_train`` frames drawn without replacement, the rest are test (the paper's protocol).
     ``contiguous``: the training frames are one block ``[s, s + n_train)`` with a random start ``s``;
     the test frames are those more than ``gap`` frames away from the block.
+    ``blocked``: the frames are cut into consecutive slots of :data:`BLOCK` frames and ``ceil(n_train / BLOCK)``
+    slots drawn without replacement train (the last run shortened to make ``n_train``); the test frames are
+    those more than ``gap`` frames away from every training frame.
     ``cross_trial``: ``trials`` (the trial of each frame) is required; the trials are shuffled and held out
     in that order until at least ``min_test`` frames are test frames (all frames of those trials); the
     ``n_train`` training frames are drawn without replacement from the other trials' frames, so that no
@@ -44,6 +51,8 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
             )
         perm = rng.permutation(n_frames)
         return np.sort(perm[:n_train]), np.sort(perm[n_train:])
+    if protocol == "blocked":
+        return _blocked_split(n_frames, n_train, rng, min_test, gap)
     # contiguous: choose among starts that leave enough test frames
     starts = np.arange(0, n_frames - n_train + 1)
     n_test = n_frames - (np.minimum(starts + n_train + gap, n_frames) - np.maximum(starts - gap, 0))
@@ -58,6 +67,26 @@ def make_split(n_frames, n_train, *, protocol="random", seed=0, min_test=100, ga
     frames = np.arange(n_frames)
     test = frames[(frames < s - gap) | (frames >= s + n_train + gap)]
     return train, test
+
+
+def _blocked_split(n_frames, n_train, rng, min_test, gap):
+    n_slots, n_runs = n_frames // BLOCK, -(-n_train // BLOCK)
+    if n_runs > n_slots:
+        raise InputError(
+            f"blocked protocol: n_train={n_train} needs {n_runs} runs of {BLOCK}; {n_frames} frames hold {n_slots}"
+        )
+    slots = np.sort(rng.choice(n_slots, size=n_runs, replace=False))
+    train = (slots[:, None] * BLOCK + np.arange(BLOCK)).ravel()[:n_train]
+    near = np.zeros(n_frames, dtype=bool)
+    for t in train:
+        near[max(t - gap, 0) : t + gap + 1] = True
+    test = np.flatnonzero(~near)
+    if test.size < min_test:
+        raise InputError(
+            f"blocked protocol: n_train={n_train} in runs of {BLOCK} with gap={gap} leaves {test.size} test frames "
+            f"of {n_frames}; at least min_test={min_test} needed"
+        )
+    return np.sort(train), test
 
 
 def _cross_trial_split(n_frames, n_train, rng, min_test, trials):
@@ -96,6 +125,10 @@ def max_n_train(n_frames, *, protocol="random", min_test=100, gap=30):
     for ``cross_trial`` an upper bound, since it depends on the trial lengths)."""
     if protocol == "contiguous":
         return int(n_frames - min_test - gap)  # block at one end, gap on one side
+    if (
+        protocol == "blocked"
+    ):  # every run far from the others: each takes BLOCK + 2 gap frames from the test
+        return int((n_frames - min_test) // (BLOCK + 2 * gap)) * BLOCK
     return int(n_frames - min_test)
 
 

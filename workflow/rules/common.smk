@@ -107,6 +107,11 @@ def conformal(wildcards):
     return STUDY.conformal(wildcards.method)
 
 
+def pose_transform(wildcards):
+    """The method's pose transform: its own, else the study's."""
+    return method_setting(wildcards.method).get("pose_transform") or config["pose_transform"]
+
+
 def method_grid(wildcards):
     return STUDY.grid(wildcards.method)
 

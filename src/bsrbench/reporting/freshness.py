@@ -321,7 +321,6 @@ def _value(row, col, default=None):
 
 
 #: What a published row's columns may hold, checked before a row is rerun (the rest comes from the configuration).
-_PROTOCOLS = ("random", "contiguous", "cross_trial")
 _POSE_TRANSFORMS = ("heading", "none")
 _CV_MODES = ("per_size", "per_job", "none")
 #: A source or activity name: it becomes a path under the features folder.
@@ -349,7 +348,7 @@ def row_settings(row, config, where):
     ``estimator`` or ``params`` are not what the configuration runs: a published row is data, and only the
     configuration names code."""
     from ..estimators import default_grid
-    from ..splits import JobSpec
+    from ..splits import PROTOCOLS, JobSpec
 
     def bad(col, expected):
         value = row.get(col)
@@ -429,7 +428,7 @@ def row_settings(row, config, where):
         method=method,
         n_train=integer("n_train", 1, 10**6),
         seed=integer("seed", 0, 2**31 - 1),
-        protocol=choice("protocol", _PROTOCOLS),
+        protocol=choice("protocol", PROTOCOLS),
         pose_transform=choice(
             "pose_transform", _POSE_TRANSFORMS, config.get("pose_transform", "heading")
         ),

@@ -206,7 +206,7 @@ def paper_points_not_drawn(df, paper, *, source, methods, labels, n_train=None):
 
 
 #: Fig. 1's line style of each protocol (matplotlib ``ls``) and its name in the caption.
-PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "cross_trial": "-."}
+PROTOCOL_LINESTYLES = {"random": "-", "contiguous": "--", "blocked": ":", "cross_trial": "-."}
 PROTOCOL_LINE_NAMES = {"-": "solid", "--": "dashed", "-.": "dash-dotted"}
 
 
