@@ -1,4 +1,4 @@
-"""The verdict across cells and activities: Friedman with Iman-Davenport, mean ranks, the Nemenyi critical
+"""The verdict across cells and distinct motions: Friedman with Iman-Davenport, mean ranks, the Nemenyi critical
 difference and PM against each method by the Wilcoxon signed-rank test with Holm, each checked by hand."""
 
 import math
@@ -14,8 +14,11 @@ from bsrbench.reporting.verdict import (
     NO_FRIEDMAN,
     against,
     block_means,
+    bootstrap_interval,
     friedman,
+    smallest_p,
     verdict,
+    with_motions,
 )
 
 
@@ -90,23 +93,52 @@ def test_against_by_hand():
     assert r.loc["B", "p_wilcoxon_worse_holm"] == pytest.approx(holm[pb])
 
 
-def test_activity_unit_averages_over_n_and_drops_incomplete_activities():
+def test_motion_unit_averages_a_motions_cells_over_n_and_sources_and_drops_incomplete_ones():
     table = {
         ("golf", 30): {"PM": 6.0, "A": 4.0},
         ("golf", 60): {"PM": 4.0, "A": 3.0},
         ("run", 30): {"PM": 7.0, "A": 5.0},
-        ("run", 60): {"PM": 5.0},  # A missing at N = 60: run is not a complete activity
+        ("run", 60): {"PM": 5.0},  # A missing at N = 60: run is not a complete motion
     }
-    df = _rows(table)
+    mocap = {("golf_mocap", 30): {"PM": 2.0, "A": 1.0}}
+    df = pd.concat([_rows(table), _rows(mocap, source="mocap")], ignore_index=True)
+    df = with_motions(df, {("mocap", "golf_mocap"): "golf"})
     cells = block_means(df, "cell")
-    assert len(cells) == 3  # (run, 60) lacks A
-    acts = block_means(df, "activity")
-    assert list(acts.index) == [("hsc", "golf")]
-    assert acts.loc[("hsc", "golf"), "PM"] == pytest.approx(
-        5.005
-    )  # mean of 6, 4 (+0.005 of the seeds)
+    assert len(cells) == 4  # (run, 60) lacks A
+    motions = block_means(df, "motion")
+    assert list(motions.index) == ["golf"]
+    # the mean of golf's three cells, 6, 4 (hsc) and 2 (mocap), +0.005 of the seeds
+    assert motions.loc["golf", "PM"] == pytest.approx(4.005)
+    assert motions.loc["golf", "A"] == pytest.approx((4.0 + 3.0 + 1.0) / 3 + 0.005)
     with pytest.raises(InputError, match="unit 'frame' is not one of"):
         block_means(df, "frame")
+
+
+def test_what_b_motions_can_show():
+    # 7 motions, 11 comparisons: the smallest Holm p is 11 / 128 one-sided (the issue's 0.086), twice two-sided
+    assert smallest_p(7, 11) == pytest.approx(11 / 128) and round(smallest_p(7, 11), 3) == 0.086
+    assert smallest_p(7, 11, one_sided=False) == pytest.approx(22 / 128)
+    assert smallest_p(2, 11) == 1.0
+    # seven blocks all of one sign reach exactly that p in the verdict
+    t = {(f"m{k}", 30): {"PM": 5.0 + k, **{c: 4.0 + k for c in "ABCDEFGHIJK"}} for k in range(7)}
+    v = verdict(_rows(t))
+    r = v[(v.unit == "motion") & (v.versus == "PM")]
+    assert len(r) == 11 and np.allclose(r["p_wilcoxon_worse_holm"], 11 / 128)
+
+
+def test_bootstrap_interval_is_scipys_percentile_bootstrap_and_brackets_the_mean():
+    from scipy import stats
+
+    d = np.array([0.5, 1.2, 2.0, 0.1, 3.3, 1.1, 0.9])
+    lo, hi = bootstrap_interval(d, resamples=2000, seed=3)
+    ref = stats.bootstrap(
+        (d,), np.mean, n_resamples=2000, method="percentile", random_state=np.random.default_rng(3)
+    ).confidence_interval
+    assert (lo, hi) == (pytest.approx(ref.low), pytest.approx(ref.high))
+    assert d.min() < lo < d.mean() < hi < d.max()
+    assert bootstrap_interval(d) == bootstrap_interval(d)  # fixed seed: a table regenerates identically
+    assert all(math.isnan(x) for x in bootstrap_interval(d[:2]))
+    assert bootstrap_interval(np.full(5, 0.7)) == (0.7, 0.7)
 
 
 def test_verdict_table_scopes_units_and_no_test():
@@ -119,7 +151,7 @@ def test_verdict_table_scopes_units_and_no_test():
     df = pd.concat([_rows(hsc), _rows(mocap, source="mocap")], ignore_index=True)
     v = verdict(df)
     assert list(v.columns) == COLUMNS
-    assert set(v["scope"]) == {"hsc", "mocap", "all"} and set(v["unit"]) == {"cell", "activity"}
+    assert set(v["scope"]) == {"hsc", "mocap", "all"} and set(v["unit"]) == {"cell", "motion"}
     a = v[(v.unit == "cell") & (v.scope == "all")].set_index("method")
     assert a.loc["PM", "mean_rank"] == 3.0 and a.loc["A", "mean_rank"] == 1.0
     assert a.loc["A", "n_blocks"] == 4 and a.loc["A", "versus"] == "PM"

@@ -628,6 +628,20 @@ def check_datasets(datasets, codebook_files):
         )
 
 
+def motion_map(entries):
+    """{(source, activity): the distinct motion} of data-set entries ({(source, activity): entry} or the
+    configuration's ``datasets`` mapping {source: {activity: entry}}): the entry's ``motion``, else the activity's
+    name."""
+    if not all(isinstance(k, tuple) for k in entries):
+        entries = {
+            (s, a): e
+            for s, acts in entries.items()
+            for a, e in (acts or {}).items()
+            if isinstance(e, (dict, type(None)))
+        }
+    return {key: (e or {}).get("motion") or key[1] for key, e in entries.items()}
+
+
 def data_frames(entry):
     """Frames a data set will have: n_frames, or (motion capture with fewer_frames: use_all) what its trials
     give, counted from the BVH headers or the AMC frame lines; n_frames when that cannot be counted before the
@@ -885,6 +899,10 @@ class DataSets:
             "fewer_frames": d["fewer_frames"],
             "checksums": d["checksums"],
         }
+
+    def motions(self):
+        """{"source/activity": motion} of every data set (:func:`motion_map`; a rule param, so string keys)."""
+        return {f"{s}/{a}": m for (s, a), m in motion_map(self.entries).items()}
 
     def features_meta(self, source, activity):
         d = self.dataset(source, activity)

@@ -209,6 +209,26 @@ def study_config(files, folder=None):
     return out
 
 
+def study_datasets(files, folder=None):
+    """The data sets of a study: config/datasets.yaml's ``datasets`` with the ``datasets`` of ``files``
+    (:func:`study_config`'s files) merged over them entry by entry, as Snakemake merges the configuration files."""
+    from .safeload import read_yaml
+
+    folder = Path(folder or CONFIG)
+    out = {}
+    sources = [read_yaml(folder / "datasets.yaml") or {}]
+    sources += [read_yaml(repository_file(f, folder)) or {} for f in files]
+    for data in sources:
+        for source, acts in (
+            (data.get("datasets") if isinstance(data, dict) else None) or {}
+        ).items():
+            for activity, entry in (acts or {}).items():
+                if isinstance(entry, dict):
+                    merged = out.setdefault(source, {}).setdefault(activity, {})
+                    merged.update(entry)
+    return out
+
+
 def study_registry(config, path="the configuration"):
     """The method registry (:func:`registry`) of a :func:`study_config`; InputError naming ``path`` and a run method
     without an entry or with an estimator that is not of the form ``package.module:ClassName``."""

@@ -56,6 +56,8 @@ rule verdict:
         f"{LOGS}/aggregate/verdict.log",
     benchmark:
         f"{RESULTS}/benchmarks/aggregate/verdict.tsv"
+    params:
+        motions=STUDY.data.motions(),
     conda:
         "../envs/bsrbench.yaml"
     threads: 1

@@ -7,6 +7,7 @@ sys.stderr = open(snakemake.log[0], "w")
 from bsrbench.reporting.tables import read_results, write_csv
 from bsrbench.reporting.verdict import verdict
 
-df = verdict(read_results(snakemake.input[0]))
+motions = {tuple(k.split("/")): v for k, v in snakemake.params.motions.items()}
+df = verdict(read_results(snakemake.input[0]), motions=motions)
 write_csv(df, snakemake.output[0])
 print(f"{len(df)} rows", file=sys.stderr)

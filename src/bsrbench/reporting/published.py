@@ -154,10 +154,19 @@ def publish_comparisons(src, dest):
     df = read_results(src)
     out = cmp.published(cmp.comparisons(df))
     verdict_dest = Path(dest).with_name(Path(src).stem + "-verdict.csv")
-    verdict_table = verdict(df)
+    verdict_table = verdict(df, motions=published_motions(src))
     freshness.write_table(out, dest, "the comparisons")
     freshness.write_table(verdict_table, verdict_dest, "the verdict")
     return out
+
+
+def published_motions(table):
+    """{(source, activity): motion} of the data sets of a published table's study (its provenance's
+    configfiles over config/datasets.yaml)."""
+    from ..config import motion_map
+    from ..methods import study_datasets
+
+    return motion_map(study_datasets(freshness.configfiles(table)))
 
 
 TIE_LEGEND = (
@@ -389,6 +398,20 @@ def update_mechanisms(path, paragraph):
     )
 
 
+def reconcile_markdown(table, paper=_DEFAULT_PAPER):
+    """The reconciliation table (:func:`.reconcile.markdown`) of a published table, its study's methods and data
+    sets read from the configuration files its provenance names."""
+    from ..methods import study_datasets
+    from . import reconcile
+
+    files = freshness.configfiles(table)
+    df = read_results(table)
+    c = reconcile.cells(
+        df, freshness.study_config(files), study_datasets(files), read_paper_tables(paper)
+    )
+    return reconcile.markdown(c, study=freshness.study_name(table))
+
+
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).
 README_STUDY = "paper"
 
@@ -445,11 +468,33 @@ def main(argv=None):
         metavar="README",
         help="replace the text between <!-- mechanisms --> and <!-- /mechanisms --> instead of printing",
     )
+    rc = sub.add_parser(
+        "reconcile",
+        help="the protocol reconciliation table from a published table (reports/published/reconcile.csv)",
+    )
+    rc.add_argument("table")
+    rc.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables")
+    rc.add_argument(
+        "--update",
+        metavar="FILE",
+        help="replace the text between <!-- reconcile --> and <!-- /reconcile --> instead of printing",
+    )
     freshness.add_commands(sub)
     args = ap.parse_args(argv)
     if args.cmd in freshness.COMMANDS:
         return freshness.run_command(args)
     try:
+        if args.cmd == "reconcile":
+            text = reconcile_markdown(args.table, args.paper)
+            if args.update:
+                headline.update_blocks(
+                    args.update,
+                    {"reconcile": text},
+                    required={"reconcile": "the reconciliation table"},
+                )
+            else:
+                print(text)
+            return 0
         if args.cmd == "mechanisms":
             from .mechanisms import readme_paragraph
 
@@ -490,7 +535,13 @@ def main(argv=None):
             df, read_paper_tables(args.paper), protocol=args.protocol, comparisons=comp
         )
         labels = {m: r.label for m, r in configured(README_STUDY).items()}
-        generated = headline.blocks(df, comp, verdict(df), labels=labels, protocol=args.protocol)
+        generated = headline.blocks(
+            df,
+            comp,
+            verdict(df, motions=published_motions(args.table)),
+            labels=labels,
+            protocol=args.protocol,
+        )
         if args.update:
             if not update_readme(args.update, tables, counts, summary):
                 print(

@@ -9,8 +9,11 @@ Two units of analysis (:data:`UNITS`):
 
 - ``cell``: a block per (source, activity, n_train) cell. The cells of one activity share their frames, so they are
   not independent data sets; this is the finer, more powerful level.
-- ``activity``: a block per (source, activity), the cell means averaged over n_train: the conservative unit, one
-  block per motion. With ``b`` blocks the smallest one-sided Wilcoxon p-value is ``2**-b``.
+- ``motion``: a block per distinct motion (the data sets' ``motion`` key of config/datasets.yaml: the authors'
+  features and ours of the same CMU trials are one motion), the mean of its cells: the conservative unit. With
+  ``b`` blocks the smallest one-sided Wilcoxon p-value is ``2**-b`` (:func:`smallest_p`), so a few motions can
+  never reach significance after Holm's adjustment over many comparisons: the effect size and its bootstrap
+  interval over the motions (:func:`bootstrap_interval`) say what they can.
 
 Per unit and scope (each source alone and all sources together), :func:`verdict` gives the Friedman test over the
 methods with complete blocks (:func:`scipy.stats.friedmanchisquare`) and the Iman-Davenport F form of it, each
@@ -32,7 +35,9 @@ from ..io import read_csv
 from .comparisons import holm
 
 #: Units of analysis: the block of the tests, and the columns that name a block.
-UNITS = {"cell": ["source", "activity", "n_train"], "activity": ["source", "activity"]}
+UNITS = {"cell": ["source", "activity", "n_train"], "motion": ["motion"]}
+#: Confidence of the bootstrap interval of PM's mean difference over the motions, and its resamples.
+CONFIDENCE, RESAMPLES = 0.95, 10_000
 #: Scope of all sources together.
 ALL = "all"
 ALPHA = 0.05
@@ -56,6 +61,8 @@ COLUMNS = [
     "versus",
     "mean_diff",
     "versus_worse_blocks",
+    "diff_ci_low",
+    "diff_ci_high",
     "p_wilcoxon",
     "p_wilcoxon_holm",
     "p_wilcoxon_worse",
@@ -64,20 +71,59 @@ COLUMNS = [
 ]
 
 
+def with_motions(df, motions=None):
+    """``df`` with a ``motion`` column: ``motions[(source, activity)]`` (:func:`bsrbench.config.motion_map`), the
+    activity's name where the map has none."""
+    motions = motions or {}
+    out = df.copy()
+    out["motion"] = [motions.get((s, a), a) for s, a in zip(df["source"], df["activity"])]
+    return out
+
+
 def block_means(df, unit):
-    """Blocks x methods table of mean errors for one protocol's rows ``df``: per ``unit`` (:data:`UNITS`) block, the
-    mean over seeds of each cell, then (unit ``activity``) the mean over the cells' n_train. Only blocks where every
-    method has a value are kept (the tests need complete blocks)."""
+    """Blocks x methods table of mean errors for one protocol's rows ``df`` (with a ``motion`` column,
+    :func:`with_motions`): per ``unit`` (:data:`UNITS`) block, the mean over seeds of each cell, then (unit
+    ``motion``) the mean over the motion's cells (its sizes N and data sets). Only blocks where every method has a
+    value in every cell are kept (the tests need complete blocks)."""
     if unit not in UNITS:
         raise InputError(f"unit {unit!r} is not one of {sorted(UNITS)}")
-    cells = df.groupby(UNITS["cell"] + ["method"], sort=True)["error"].mean()
+    cells = df.groupby(["motion", *UNITS["cell"], "method"], sort=True)["error"].mean()
     w = cells.unstack("method")
-    if unit == "activity":
-        w = w.groupby(level=["source", "activity"], sort=True).mean(numeric_only=False)
-        # an activity whose cells miss a method for some n_train is incomplete, not averaged over fewer cells
-        complete = cells.unstack("method").notna().groupby(level=["source", "activity"]).all()
-        w = w.where(complete)
+    if unit == "motion":
+        # a motion whose cells miss a method somewhere is incomplete, not averaged over fewer cells
+        complete = w.notna().groupby(level="motion").all()
+        w = w.groupby(level="motion", sort=True).mean().where(complete)
+    else:
+        w = w.droplevel("motion")
     return w.dropna(axis=0, how="any")
+
+
+def smallest_p(n_blocks, n_comparisons, one_sided=True):
+    """The smallest Holm-adjusted Wilcoxon signed-rank p-value that ``n_blocks`` blocks can give over
+    ``n_comparisons`` comparisons: ``n_comparisons * 2**-b`` one-sided (every block the same sign), twice that
+    two-sided, at most 1."""
+    p = 2.0 ** -int(n_blocks) * (1 if one_sided else 2)
+    return min(1.0, p * int(n_comparisons))
+
+
+def bootstrap_interval(d, *, confidence=CONFIDENCE, resamples=RESAMPLES, seed=0):
+    """Percentile bootstrap interval of the mean of the block differences ``d`` (the blocks resampled with
+    replacement, :func:`scipy.stats.bootstrap`, a fixed seed so that a table regenerates identically); (nan, nan)
+    with fewer than 3 blocks."""
+    d = np.asarray(d, dtype=float)
+    if d.size < 3:
+        return math.nan, math.nan
+    if np.all(d == d[0]):
+        return float(d[0]), float(d[0])
+    res = stats.bootstrap(
+        (d,),
+        np.mean,
+        confidence_level=confidence,
+        n_resamples=resamples,
+        method="percentile",
+        random_state=np.random.default_rng(seed),
+    )
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def friedman(means, *, alpha=ALPHA):
@@ -126,11 +172,13 @@ def _wilcoxon(d, alternative):
     return float(stats.wilcoxon(d, alternative=alternative).pvalue)
 
 
-def against(means, pm="PM"):
+def against(means, pm="PM", interval=False):
     """PM against each other method over the blocks of ``means``: a DataFrame indexed by method with mean_diff
     (mean over blocks of PM - method; positive: PM worse), versus_worse_blocks (blocks where PM's error is higher),
-    p_wilcoxon (two-sided), p_wilcoxon_worse (one-sided, PM worse) and their Holm-adjusted values over the methods.
-    Empty if PM is not a column; p-values NaN (with a note) with fewer than 2 blocks."""
+    with ``interval`` the bootstrap interval of mean_diff over the blocks (:func:`bootstrap_interval`; blocks
+    that are independent data sets only), p_wilcoxon (two-sided), p_wilcoxon_worse (one-sided, PM worse) and their
+    Holm-adjusted values over the methods. Empty if PM is not a column; p-values NaN (with a note) with fewer than
+    2 blocks."""
     cols = COLUMNS[COLUMNS.index("mean_diff") :]
     others = [m for m in means.columns if m != pm]
     if pm not in means.columns or not others:
@@ -140,6 +188,8 @@ def against(means, pm="PM"):
         d = (means[pm] - means[m]).to_numpy(float)
         r = {"mean_diff": float(d.mean()) if d.size else math.nan}
         r["versus_worse_blocks"] = int((d > 0).sum())
+        low, high = bootstrap_interval(d) if interval else (math.nan, math.nan)
+        r.update(diff_ci_low=low, diff_ci_high=high)
         if d.size < 2:
             r.update(p_wilcoxon=math.nan, p_wilcoxon_worse=math.nan, note=NO_BLOCKS)
         else:
@@ -155,11 +205,12 @@ def against(means, pm="PM"):
     return out[cols]
 
 
-def verdict(df, *, pm="PM", alpha=ALPHA):
+def verdict(df, *, motions=None, pm="PM", alpha=ALPHA):
     """The verdict table (:data:`COLUMNS`) of an aggregate or published results table ``df``: per protocol, unit
     (:data:`UNITS`) and scope (each source, then :data:`ALL` when there are several), one row per method with its
-    mean rank and, for the other methods, PM against it; the Friedman columns repeat on the rows of a unit and
-    scope."""
+    mean rank and, for the other methods, PM against it (with the bootstrap interval of the difference for the
+    motions); the Friedman columns repeat on the rows of a unit and scope. ``motions``: {(source, activity):
+    motion} (:func:`bsrbench.config.motion_map`; default: the activity's name)."""
     need = ["protocol", "source", "activity", "n_train", "method", "seed", "error"]
     missing = [c for c in need if c not in df.columns]
     if missing:
@@ -167,6 +218,7 @@ def verdict(df, *, pm="PM", alpha=ALPHA):
             f"the results table lacks columns {missing} needed for the verdict across cells; expected the "
             "aggregate table (results/{study}/aggregate/results.csv)"
         )
+    df = with_motions(df, motions)
     rows = []
     for protocol, dp in df.groupby("protocol", sort=True):
         sources = sorted(dp["source"].unique())
@@ -179,7 +231,7 @@ def verdict(df, *, pm="PM", alpha=ALPHA):
                     continue
                 fr = friedman(means, alpha=alpha)
                 ranks = means.rank(axis=1, method="average").mean(axis=0)
-                vs = against(means, pm)
+                vs = against(means, pm, interval=unit == "motion")
                 for m in sorted(means.columns, key=lambda m: (ranks[m], m)):
                     r = {"protocol": protocol, "unit": unit, "scope": scope, **fr}
                     r.update(method=m, mean_rank=float(ranks[m]))
@@ -237,8 +289,8 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
         "The tests of each cell compare methods on the frames of one motion. Whether "
         + L(pm)
         + " is worse than another method on motions like these is asked with the motions as the unit (Demsar "
-        "2006): each block is a (source, activity, $N$) cell, or a (source, activity) motion with its cells "
-        "averaged over $N$ (the conservative unit, since the cells of a motion share its frames). Friedman's "
+        "2006): each block is a (source, activity, $N$) cell, or a distinct motion with its cells "
+        "averaged over $N$ and data sets (the conservative unit, since the cells of a motion share its frames). Friedman's "
         "test over the methods (with the Iman-Davenport $F$) and, for "
         + L(pm)
         + " against each other method, the Wilcoxon signed-rank test of the blocks' differences, "
@@ -256,9 +308,7 @@ def section_latex(v, *, labels, pm="PM", alpha=ALPHA):
             if vu.empty:
                 continue
             scopes = list(dict.fromkeys(vu["scope"]))
-            words = (
-                "(source, activity, $N$) cells" if unit == "cell" else "(source, activity) motions"
-            )
+            words = "(source, activity, $N$) cells" if unit == "cell" else "distinct motions"
             if (vu["n_blocks"] < 2).all():
                 out.append(
                     f"{escape(protocol.replace('_', '-').capitalize())} protocol, blocks {words}: "

@@ -1,0 +1,222 @@
+"""The protocol reconciliation: under which variant of the protocol do 1-NN and the paper's baselines land on the
+paper's numbers for the authors' features (``config/reconcile.yaml``, ``reports/published/reconcile.csv``)?
+
+A variant is a combination of four factors, each read from the study's configuration rather than from names:
+
+- ``splits``: the row's protocol (random, blocked, ...);
+- ``frames``: which frames of the authors' file the data set keeps (its ``first_frame`` and ``frame_step``);
+- ``setting``: how the method is set, from its configuration: ``tuned`` (a CV grid), ``defaults`` (no grid, no
+  parameters: the class's defaults) or ``no heading transform`` (its own ``pose_transform: none``);
+- ``metric``: the error with wrapped angle differences (``error``, the paper's metric as the authors' group's code
+  computes it) or the plain difference (``error_unwrapped``).
+
+Per variant, method and cell (paper activity, N) the mean error over the seeds is set beside the paper's number for
+that method (for 1-NN, which the paper does not run, the best of the paper's four baselines in that cell): the ratio
+ours / paper and whether ours lies within the paper's standard deviation of it. :func:`summary` gives per variant
+and method the median ratio over the cells and the cells within the std; :func:`nearest` names the variant whose
+methods land nearest the paper (smallest median over methods and cells of |log ratio|).
+"""
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from .tables import paper_key, paper_names
+
+#: The paper's baselines, the methods whose numbers are reconciled (with 1-NN against their best).
+BASELINES = ("RVM", "TGP", "SR", "DDL")
+NN = "1-NN"
+METRICS = {"wrapped": "error", "unwrapped": "error_unwrapped"}
+FACTORS = ["splits", "frames", "setting", "metric"]
+#: The study's own protocol, first in every factor's order.
+BASE = {"splits": "random", "frames": "rows 0-599", "setting": "tuned", "metric": "wrapped"}
+
+
+def frames_label(entry):
+    """Which rows of its file a data set keeps: ``rows 0-599``, ``rows 100-699``, ``every 2nd row``."""
+    first, step, n = (
+        int(entry.get("first_frame") or 0),
+        int(entry.get("frame_step") or 1),
+        entry["n_frames"],
+    )
+    if step > 1:
+        return f"every {step}nd row" if step == 2 else f"every {step}th row"
+    return f"rows {first}-{first + int(n) - 1}"
+
+
+def method_setting(entry):
+    """How a configured method is set: ``no heading transform``, ``defaults`` or ``tuned``."""
+    if entry.get("pose_transform") == "none":
+        return "no heading transform"
+    if entry.get("grid", "default") is None and not entry.get("params"):
+        return "defaults"
+    return "tuned"
+
+
+def cells(df, config, datasets, paper):
+    """One row per variant, method (its paper name, or 1-NN) and cell (paper activity, N) of the results ``df``:
+    our mean and std over the seeds, the paper's mean and std, ratio and ``within`` (|ours - paper| <= the paper's
+    std). ``config``: the study's configuration (methods), ``datasets``: {source: {activity: entry}} of the study,
+    ``paper``: :func:`.tables.read_paper_tables`."""
+    names = paper_names(df)
+    methods = config.get("methods") or {}
+    kinds = {}
+    for m in df["method"].unique():
+        name = names.get(m)
+        if name in BASELINES:
+            kinds[m] = (name, method_setting(methods.get(m) or {}))
+        elif m in methods and "NearestNeighbourRegressor" in methods[m]["estimator"]:
+            if (methods[m].get("params") or {}).get("n_neighbors") == 1:
+                kinds[m] = (NN, "tuned")
+    if not kinds:
+        raise InputError(
+            "the results hold neither 1-NN nor one of the paper's baselines; nothing to reconcile"
+        )
+    rows = df[df["method"].isin(kinds)].copy()
+    missing = [c for c in METRICS.values() if c not in rows.columns]
+    if missing:
+        raise InputError(
+            f"the results lack columns {missing}; expected rows of today's code (rerun the study)"
+        )
+    rows["frames"] = [
+        frames_label(datasets[s][a]) for s, a in zip(rows["source"], rows["activity"])
+    ]
+    rows["splits"] = rows["protocol"]
+    rows["name"] = rows["method"].map(lambda m: kinds[m][0])
+    rows["setting"] = rows["method"].map(lambda m: kinds[m][1])
+    rows["key"] = rows["paper_activity"].map(paper_key)
+    book = paper.set_index(["key", "n_train", "method"])[["mean_deg", "std_deg"]]
+    best = (
+        paper[paper["method"].isin(BASELINES)]
+        .sort_values("mean_deg")
+        .groupby(["key", "n_train"])
+        .first()
+    )
+    out = []
+    for metric, col in METRICS.items():
+        g = rows.groupby(
+            ["splits", "frames", "setting", "name", "key", "paper_activity", "n_train"]
+        )[col]
+        means = g.agg(["mean", "std", "count"]).reset_index()
+        for r in means.itertuples(index=False):
+            key = (r.key, int(r.n_train))
+            if r.name == NN:
+                if key not in best.index:
+                    continue
+                ref = best.loc[key]
+                p_mean, p_std, ref_method = (
+                    float(ref["mean_deg"]),
+                    float(ref["std_deg"]),
+                    ref["method"],
+                )
+            else:
+                if (*key, r.name) not in book.index:
+                    continue
+                ref = book.loc[(*key, r.name)]
+                p_mean, p_std, ref_method = float(ref["mean_deg"]), float(ref["std_deg"]), r.name
+            out.append(
+                {
+                    "splits": r.splits,
+                    "frames": r.frames,
+                    "setting": r.setting,
+                    "metric": metric,
+                    "method": r.name,
+                    "paper_activity": r.paper_activity,
+                    "n_train": int(r.n_train),
+                    "seeds": int(r.count),
+                    "mean": float(r.mean),
+                    "std": float(r.std),
+                    "paper_method": ref_method,
+                    "paper_mean": p_mean,
+                    "paper_std": p_std,
+                    "ratio": float(r.mean) / p_mean,
+                    "within": bool(abs(float(r.mean) - p_mean) <= p_std),
+                }
+            )
+    out = pd.DataFrame(out)
+    # 1-NN has one setting: it is the same fit under every setting of the baselines
+    nn = out[out["method"] == NN]
+    for setting in sorted(set(out["setting"]) - {"tuned"}):
+        out = pd.concat([out, nn.assign(setting=setting)], ignore_index=True)
+    return out
+
+
+def _order(values, first):
+    return sorted(set(values), key=lambda v: (v != first, v))
+
+
+def summary(c):
+    """Per variant (:data:`FACTORS`) and method: cells, median ratio over them, cells within the paper's std, and
+    the median |log ratio| (the distance to the paper). The study's own protocol first."""
+    g = c.groupby([*FACTORS, "method"])
+    s = g.agg(
+        cells=("ratio", "size"),
+        median_ratio=("ratio", "median"),
+        within=("within", "sum"),
+    ).reset_index()
+    s["distance"] = g["ratio"].agg(lambda r: float(np.median(np.abs(np.log(r))))).to_numpy()
+    for f in FACTORS:
+        s[f] = pd.Categorical(s[f], _order(s[f], BASE[f]))
+    methods = [NN, *BASELINES]
+    s["method"] = pd.Categorical(s["method"], [m for m in methods if m in set(s["method"])])
+    return s.sort_values([*FACTORS, "method"]).reset_index(drop=True)
+
+
+def nearest(s):
+    """The variant whose methods land nearest the paper's numbers: ``(variant dict, distance)``, the smallest mean
+    over the methods of their median |log ratio| (every method of the study measured in it)."""
+    n_methods = s["method"].nunique()
+    d = s.groupby(FACTORS, observed=True).agg(
+        distance=("distance", "mean"), methods=("method", "nunique")
+    )
+    # ties go to the variant nearer the study's own protocol (the factors' order)
+    d = d[d["methods"] == n_methods].sort_index().sort_values("distance", kind="mergesort")
+    if d.empty:
+        raise InputError("no variant has every method measured; nothing to choose")
+    best = d.index[0]
+    return dict(zip(FACTORS, best)), float(d["distance"].iloc[0])
+
+
+def markdown(c, *, study="reconcile"):
+    """The markdown table of the reconciliation (one row per variant, per method the median ratio and the cells
+    within the paper's std) with its legend and the nearest variant."""
+    s = summary(c)
+    methods = list(s["method"].cat.categories)
+    head = "| splits | frames | setting | metric | " + " | ".join(methods) + " | mean distance |"
+    lines = [head, "|" + "---|" * (5 + len(methods))]
+    for key, g in s.groupby(FACTORS, observed=True, sort=True):
+        g = g.set_index("method", drop=False)
+        cols = []
+        for m in methods:
+            if m in g.index and g.loc[m, "cells"] > 0:
+                r = g.loc[m]
+                cols.append(f"{r['median_ratio']:.2f} ({int(r['within'])}/{int(r['cells'])})")
+            else:
+                cols.append("--")
+        dist = g["distance"].mean()
+        lines.append(
+            "| " + " | ".join(map(str, key)) + " | " + " | ".join(cols) + f" | {dist:.2f} |"
+        )
+    best, dist = nearest(s)
+    base = s[(s[FACTORS] == pd.Series(BASE)).all(axis=1)]
+    base_dist = base["distance"].mean() if len(base) else float("nan")
+    b = s.set_index([*FACTORS, "method"])
+    key = tuple(best[f] for f in FACTORS)
+    per = ", ".join(
+        f"{m} {b.loc[(*key, m), 'median_ratio']:.2f} ({int(b.loc[(*key, m), 'within'])} of "
+        f"{int(b.loc[(*key, m), 'cells'])} cells within the paper's std)"
+        for m in methods
+        if (*key, m) in b.index
+    )
+    lines += [
+        "",
+        f"Per variant of the protocol and method: the median over the cells (paper activity, N) of our mean error "
+        f"over the paper's number for that method and cell, and (in brackets) the cells where our mean lies within "
+        f"the paper's standard deviation of it; {NN} against the best of the paper's four baselines in the cell. "
+        f"Mean distance: the mean over the methods of the median |log ratio| (0: the paper's numbers). Generated "
+        f"by `python -m bsrbench.reporting.published reconcile reports/published/{study}.csv`.",
+        "",
+        f"Nearest the paper: splits {best['splits']}, {best['frames']}, {best['setting']}, {best['metric']} error "
+        f"(mean distance {dist:.2f}; the study's own protocol: {base_dist:.2f}): {per}.",
+    ]
+    return "\n".join(lines)
