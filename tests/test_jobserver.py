@@ -329,16 +329,24 @@ def test_shutdown_removes_what_a_killed_server_left(server_socket, tmp_path):
 
 
 def _listening_pid(path):
-    """The pid of the process listening on the Unix socket ``path`` (from /proc/net/unix and /proc/*/fd)."""
-    inode = next(  # the listening socket (flag __SO_ACCEPTCON), not a connection accepted on it
-        ln.split()[6]
+    """The pid of the process listening on the Unix socket ``path`` (from /proc/net/unix and /proc/*/fd). The job
+    server binds its socket by name inside its working directory (the checked directory), so /proc/net/unix
+    shows that name; the process's working directory tells which server it is."""
+    inodes = {  # the listening socket (flag __SO_ACCEPTCON), not a connection accepted on it
+        ln.split()[6]: ln.split()[7]
         for ln in open("/proc/net/unix")
-        if ln.rstrip().endswith(str(path)) and ln.split()[3] == "00010000"
-    )
+        if len(ln.split()) > 7
+        and ln.split()[3] == "00010000"
+        and ln.split()[7] in (str(path), path.name)
+    }
     for fd_dir in Path("/proc").glob("[0-9]*/fd"):
         try:
-            if any(os.readlink(fd) == f"socket:[{inode}]" for fd in fd_dir.iterdir()):
-                return int(fd_dir.parent.name)
+            held = {os.readlink(fd) for fd in fd_dir.iterdir()}
+            for inode, name in inodes.items():
+                if f"socket:[{inode}]" in held and (
+                    name == str(path) or os.readlink(fd_dir.parent / "cwd") == str(path.parent)
+                ):
+                    return int(fd_dir.parent.name)
         except OSError:
             continue
     raise AssertionError(f"no process listens on {path}")
@@ -637,7 +645,13 @@ def test_the_server_never_loads_a_pickled_request(server_socket, tmp_path):
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.connect(str(server_socket))
         s.sendall(_pickle_message(marker))
-        assert s.recv(1 << 16) == b""  # closed without a reply
+        # answered with one line why, then closed
+        reply = jobserver._recv(s)
+        assert reply == {
+            "status": "error",
+            "detail": "refused a request: a message that is not JSON",
+        }
+        assert s.recv(1 << 16) == b""
     assert not marker.exists()
     jobserver.run("bsrbench.jobserver:ping", _ping(tmp_path))  # and it serves on
     assert _listening_pid(server_socket) == server_pid
