@@ -45,7 +45,8 @@ def test_a_methods_modules_are_its_estimators_imports_and_the_job_logic():
     files = pm.source_files()
     assert str(ROOT / "src" / "bsrbench" / "models" / "_bsr_kernels.py") in files
     with pytest.raises(
-        ValueError, match=r"methods.X.estimator': estimator 'no_such_module_x:Y': cannot find module"
+        ValueError,
+        match=r"methods.X.estimator': estimator 'no_such_module_x:Y': cannot find module",
     ):
         Method("X", "X", "paper", 0, "no_such_module_x:Y").source_files()
 

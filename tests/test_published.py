@@ -259,9 +259,14 @@ def test_a_part_published_with_its_studys_configfiles_is_checked_against_them(
     outside = tmp_path / "nope.yaml"
     outside.write_text("run: [NN1]\n")
     assert main(["publish", str(src), str(dest), "--configfiles", str(outside)]) == 2
-    assert f"configfiles entry '{outside}': expected a path relative to the checkout" in capsys.readouterr().err
+    assert (
+        f"configfiles entry '{outside}': expected a path relative to the checkout"
+        in capsys.readouterr().err
+    )
     assert main(["publish", str(src), str(dest), "--configfiles", "config/nope.yaml"]) == 2
-    assert "config/nope.yaml: no such file; expected a configuration file" in capsys.readouterr().err
+    assert (
+        "config/nope.yaml: no such file; expected a configuration file" in capsys.readouterr().err
+    )
     assert not dest.exists()
     assert main(["publish", str(src), str(dest), "--configfiles", "config/ci.yaml"]) == 2
     assert "do not run the methods" in capsys.readouterr().err

@@ -136,7 +136,9 @@ def test_bootstrap_interval_is_scipys_percentile_bootstrap_and_brackets_the_mean
     ).confidence_interval
     assert (lo, hi) == (pytest.approx(ref.low), pytest.approx(ref.high))
     assert d.min() < lo < d.mean() < hi < d.max()
-    assert bootstrap_interval(d) == bootstrap_interval(d)  # fixed seed: a table regenerates identically
+    assert bootstrap_interval(d) == bootstrap_interval(
+        d
+    )  # fixed seed: a table regenerates identically
     assert all(math.isnan(x) for x in bootstrap_interval(d[:2]))
     assert bootstrap_interval(np.full(5, 0.7)) == (0.7, 0.7)
 

@@ -657,7 +657,8 @@ def test_a_method_that_cannot_be_built_fails_the_run_before_anything_is_written(
         out = res.stdout + res.stderr
         assert res.returncode != 0, out[-3000:]
         assert re.search(
-            r"methods\.GPR\.estimator': estimator 'bsrbench\.models\.gpr:GPR': cannot find module", out
+            r"methods\.GPR\.estimator': estimator 'bsrbench\.models\.gpr:GPR': cannot find module",
+            out,
         ), out[-3000:]
     assert _snapshot(ci_run) == before
 

@@ -301,7 +301,9 @@ def code_digests(estimator, method=None):
     from .methods import Method
     from .sources import ROOT
 
-    files = Method(name=method or estimator, label="", group="", order=0, estimator=estimator).source_files()
+    files = Method(
+        name=method or estimator, label="", group="", order=0, estimator=estimator
+    ).source_files()
     out = {}
     for f in map(Path, files):
         rel = f.relative_to(ROOT).as_posix() if f.is_relative_to(ROOT) else f.name

@@ -56,10 +56,10 @@ rule verdict:
         f"{LOGS}/aggregate/verdict.log",
     benchmark:
         f"{RESULTS}/benchmarks/aggregate/verdict.tsv"
-    params:
-        motions=STUDY.data.motions(),
     conda:
         "../envs/bsrbench.yaml"
     threads: 1
+    params:
+        motions=STUDY.data.motions(),
     script:
         "../scripts/verdict.py"

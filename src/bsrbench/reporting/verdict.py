@@ -245,8 +245,8 @@ def verdict(df, *, motions=None, pm="PM", alpha=ALPHA):
                     rows.append(r)
     out = pd.DataFrame(rows, columns=COLUMNS)
     out["versus_worse_blocks"] = out["versus_worse_blocks"].astype("Int64")
-    out["versus"] = out["versus"].fillna("")
-    out["note"] = out["note"].fillna("")
+    for col in ("versus", "note"):
+        out[col] = out[col].astype(object).fillna("")
     return out
 
 
