@@ -123,3 +123,48 @@ def test_results_without_the_baselines_or_the_unwrapped_error_are_refused():
         )
     with pytest.raises(InputError, match=r"lack columns \['error_unwrapped'\]"):
         rc.cells(df.drop(columns="error_unwrapped"), CONFIG, DATASETS, PAPER)
+
+
+def test_pm_under_the_nearest_variant_is_tested_against_each_baseline_by_hand():
+    from scipy import stats
+
+    BSR = "bsrbench.models.bsr:BayesianSR"
+    config = {
+        "methods": {
+            **CONFIG["methods"],
+            "PM": {"estimator": BSR, "label": "PM", "params": {"n_atoms": 8}, "grid": None},
+        }
+    }
+    pm = [5.0, 5.1, 4.9, 5.2, 4.8]
+    rvm = [7.0, 7.2, 6.9, 7.1, 7.3]
+    nn = [5.05, 5.0, 5.1, 4.95, 5.0]
+    rows = _rows("PM", BSR, "golf", "blocked", pm)
+    rows += _rows("RVMd", RVM, "golf", "blocked", rvm)
+    rows += _rows("NN1", NN1, "golf", "blocked", nn)
+    rows += _rows("PM", BSR, "golf", "random", [1.0] * 5)  # another variant: not counted
+    df = pd.DataFrame(rows).assign(r_hat_test_error=1.0)
+    df.loc[df["method"] == "PM", "r_hat_test_error"] = [1.0, 1.02, 1.01, 1.0, 1.04] + [9.0] * 5
+    paper = pd.concat(
+        [PAPER, PAPER.iloc[:1].assign(method="PM", mean_deg=6.0, std_deg=1.0)], ignore_index=True
+    )
+    variant = {
+        "splits": "blocked",
+        "frames": "rows 0-599",
+        "setting": "defaults",
+        "metric": "wrapped",
+    }
+    got, names = rc.pm_rows(df, config, DATASETS, variant)
+    assert names == ["PM"] and set(got["name"]) == {"PM", "RVM", "1-NN"}
+    (s,) = rc.pm_summary(got, names, paper)
+    assert (
+        s["cells"] == 1 and s["ratios"] == [pytest.approx(sum(pm) / 5 / 6.0)] and s["within"] == 1
+    )
+    assert sorted(s["r_hat"]) == [1.0, 1.0, 1.01, 1.02, 1.04]
+    # by hand: paired t-tests over the seeds, Holm over PM's two comparisons of the cell
+    p_rvm, p_nn = stats.ttest_rel(pm, rvm).pvalue, stats.ttest_rel(pm, nn).pvalue
+    lo, hi = sorted([p_rvm, p_nn])
+    holm = {lo: 2 * lo, hi: max(2 * lo, hi)}
+    assert holm[p_rvm] < 0.05 <= holm[p_nn]
+    assert s["counts"] == {"1-NN": [0, 1, 0], "RVM": [1, 0, 0]}
+    text = rc.pm_markdown([s], variant)
+    assert "| PM | 1 | 0.83 (1/1) | 1.010, 1.040 | 0/1/0 | 1/0/0 |" in text

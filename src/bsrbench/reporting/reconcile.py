@@ -26,6 +26,7 @@ from .tables import paper_key, paper_names
 #: The paper's baselines, the methods whose numbers are reconciled (with 1-NN against their best).
 BASELINES = ("RVM", "TGP", "SR", "DDL")
 NN = "1-NN"
+PM = "PM"
 METRICS = {"wrapped": "error", "unwrapped": "error_unwrapped"}
 FACTORS = ["splits", "frames", "setting", "metric"]
 #: The study's own protocol, first in every factor's order.
@@ -175,6 +176,109 @@ def nearest(s):
         raise InputError("no variant has every method measured; nothing to choose")
     best = d.index[0]
     return dict(zip(FACTORS, best)), float(d["distance"].iloc[0])
+
+
+def pm_rows(df, config, datasets, variant):
+    """``(rows, pm)``: the rows of PM's methods (the paper's estimator), 1-NN and the paper's baselines in
+    ``variant``'s splits and frames (the :func:`nearest` variant) and setting (and tuned, named ``RVM (tuned)``),
+    with ``name`` (PM's methods by their configured label, 1-NN, RVM, ...), and PM's names; no rows when the
+    results hold no PM method there."""
+    names = paper_names(df)
+    methods = config.get("methods") or {}
+    label = {}
+    for m in df["method"].unique():
+        entry = methods.get(m) or {}
+        if names.get(m) == PM:
+            label[m] = str(entry.get("label") or m)
+        elif names.get(m) in BASELINES and method_setting(entry) in (variant["setting"], "tuned"):
+            setting = method_setting(entry)
+            label[m] = names[m] if setting == variant["setting"] else f"{names[m]} ({setting})"
+        elif (
+            "NearestNeighbourRegressor" in str(entry.get("estimator", ""))
+            and (entry.get("params") or {}).get("n_neighbors") == 1
+        ):
+            label[m] = NN
+    rows = df[df["method"].isin(label) & (df["protocol"] == variant["splits"])].copy()
+    rows["frames"] = [
+        frames_label(datasets[s][a]) for s, a in zip(rows["source"], rows["activity"])
+    ]
+    rows = rows[rows["frames"] == variant["frames"]]
+    rows["name"] = rows["method"].map(label)
+    pm = sorted({label[m] for m in label if names.get(m) == PM})
+    return rows if set(rows["name"]) & set(pm) else rows.iloc[:0], pm
+
+
+def pm_summary(rows, pm_names, paper, metric="error"):
+    """Per PM method: the cells, its median ratio to the paper's PM and the cells within the paper's std, the
+    split R-hat of its chains (median and largest over the splits), and per method compared with (1-NN and the
+    baselines) the cells where it is better, tied or worse on these frames (paired t-test over the seeds, Holm over
+    the method's comparisons of the cell, p < 0.05). ``metric``: the error column (:data:`METRICS`)."""
+    from .comparisons import compare_pair, holm
+
+    book = paper.set_index(["key", "n_train", "method"])[["mean_deg", "std_deg"]]
+    present = set(rows["name"])
+    others = [m for b in (NN, *BASELINES) for m in (b, f"{b} (tuned)") if m in present]
+    out = []
+    for name in pm_names:
+        r = {"method": name, "cells": 0, "ratios": [], "within": 0, "r_hat": []}
+        counts = {o: [0, 0, 0] for o in others}
+        for (_, _, pa, n), g in rows.groupby(["source", "activity", "paper_activity", "n_train"]):
+            e = g.pivot_table(index="seed", columns="name", values=metric, aggfunc="first")
+            if name not in e.columns:
+                continue
+            r["cells"] += 1
+            key = (paper_key(pa), int(n), PM)
+            if key in book.index:
+                ours, ref = float(e[name].mean()), book.loc[key]
+                r["ratios"].append(ours / float(ref["mean_deg"]))
+                r["within"] += abs(ours - float(ref["mean_deg"])) <= float(ref["std_deg"])
+            if "r_hat_test_error" in g.columns:
+                r["r_hat"] += list(g.loc[g["name"] == name, "r_hat_test_error"].dropna())
+            tests = []
+            for o in others:
+                common = e[[name, o]].dropna() if o in e.columns else e.iloc[:0]
+                res = compare_pair(common[name], common[o], n_train=float(n), n_test=1.0)
+                tests.append((o, res["mean_diff"], res["p_paired_t"]))
+            for (o, diff, _), p in zip(tests, holm([t[2] for t in tests])):
+                if np.isfinite(p) and p < 0.05:
+                    counts[o][0 if diff < 0 else 2] += 1
+                elif np.isfinite(p):
+                    counts[o][1] += 1
+        r["counts"] = counts
+        out.append(r)
+    return out
+
+
+def pm_markdown(summaries, variant):
+    """The markdown of :func:`pm_summary` with its legend."""
+    if not summaries:
+        return ""
+    others = list(summaries[0]["counts"])
+    head = "| method | cells | ratio to the paper's PM | split R-hat (median, max) | " + " | ".join(
+        f"vs {o}" for o in others
+    )
+    lines = [head + " |", "|" + "---|" * (4 + len(others))]
+    for r in summaries:
+        ratio = (
+            f"{np.median(r['ratios']):.2f} ({r['within']}/{len(r['ratios'])})"
+            if r["ratios"]
+            else "--"
+        )
+        rh = f"{np.median(r['r_hat']):.3f}, {np.max(r['r_hat']):.3f}" if r["r_hat"] else "--"
+        cols = ["{}/{}/{}".format(*r["counts"][o]) for o in others]
+        lines.append(
+            f"| {r['method']} | {r['cells']} | {ratio} | {rh} | " + " | ".join(cols) + " |"
+        )
+    lines += [
+        "",
+        f"PM under the nearest variant (splits {variant['splits']}, {variant['frames']}): the median over the "
+        "cells of its mean error over the paper's PM (in brackets: cells within the paper's std); the split R-hat "
+        "of its test error over its chains (1.01 or less: the chains agree); per method compared with, the cells "
+        "where PM's method is better / tied / worse on these frames (paired t-test over the seeds, Holm over the "
+        "method's comparisons in the cell, p < 0.05). With 4 motions no test across motions can reach p < 0.05 "
+        "(the smallest two-sided Wilcoxon p is 0.125), so no claim beyond these frames is made.",
+    ]
+    return "\n".join(lines)
 
 
 def markdown(c, *, study="reconcile"):
