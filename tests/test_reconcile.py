@@ -167,4 +167,4 @@ def test_pm_under_the_nearest_variant_is_tested_against_each_baseline_by_hand():
     assert holm[p_rvm] < 0.05 <= holm[p_nn]
     assert s["counts"] == {"1-NN": [0, 1, 0], "RVM": [1, 0, 0]}
     text = rc.pm_markdown([s], variant)
-    assert "| PM | 1 | 0.83 (1/1) | 1.010, 1.040 | 0/1/0 | 1/0/0 |" in text
+    assert "| PM | 1 | 5.00 / nan | 0.83 (1/1) | 1.010, 1.040 | 0/1/0 | 1/0/0 |" in text

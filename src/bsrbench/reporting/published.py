@@ -406,10 +406,22 @@ def reconcile_markdown(table, paper=_DEFAULT_PAPER):
 
     files = freshness.configfiles(table)
     df = read_results(table)
-    c = reconcile.cells(
-        df, freshness.study_config(files), study_datasets(files), read_paper_tables(paper)
+    config, datasets, paper = (
+        freshness.study_config(files),
+        study_datasets(files),
+        read_paper_tables(paper),
     )
-    return reconcile.markdown(c, study=freshness.study_name(table))
+    c = reconcile.cells(df, config, datasets, paper)
+    text = reconcile.markdown(c, study=freshness.study_name(table))
+    variant, _ = reconcile.nearest(reconcile.summary(c))
+    rows, pm = reconcile.pm_rows(df, config, datasets, variant)
+    if len(rows):
+        summaries = reconcile.pm_summary(
+            rows, pm, paper, metric=reconcile.METRICS[variant["metric"]]
+        )
+        pm_text = reconcile.pm_markdown(summaries, variant)
+        text += "\n\n" + pm_text
+    return text
 
 
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).
@@ -477,7 +489,8 @@ def main(argv=None):
     rc.add_argument(
         "--update",
         metavar="FILE",
-        help="replace the text between <!-- reconcile --> and <!-- /reconcile --> instead of printing",
+        help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
+        "table's study, reconcile or reconcile-pm)",
     )
     freshness.add_commands(sub)
     args = ap.parse_args(argv)
@@ -487,10 +500,11 @@ def main(argv=None):
         if args.cmd == "reconcile":
             text = reconcile_markdown(args.table, args.paper)
             if args.update:
+                block = freshness.study_name(args.table)
                 headline.update_blocks(
                     args.update,
-                    {"reconcile": text},
-                    required={"reconcile": "the reconciliation table"},
+                    {block: text},
+                    required={block: f"the reconciliation table of {args.table}"},
                 )
             else:
                 print(text)
