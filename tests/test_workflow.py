@@ -149,7 +149,7 @@ def test_bad_configuration_is_rejected_before_any_job(override, message, tmp_pat
         (
             "protocols=[random, blocks]",
             r"^configuration: key 'protocols\[1\]', value 'blocks': not one of the allowed "
-            r"values; expected one of \['random', 'contiguous', 'cross_trial'\]$",
+            r"values; expected one of \['random', 'contiguous', 'blocked', 'cross_trial'\]$",
         ),
         (
             "methods={PM: {parms: {n_atoms: 8}}}",

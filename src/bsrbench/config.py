@@ -21,6 +21,7 @@ from types import MappingProxyType
 
 import yaml
 
+from .datasets import motion_map
 from .errors import InputError
 from .methods import registry
 from .paper import PAPER_ACTIVITIES
@@ -626,20 +627,6 @@ def check_datasets(datasets, codebook_files):
         raise InputError(
             "config features.codebook.files is empty; the bvh/amc data sets need codebook trials"
         )
-
-
-def motion_map(entries):
-    """{(source, activity): the distinct motion} of data-set entries ({(source, activity): entry} or the
-    configuration's ``datasets`` mapping {source: {activity: entry}}): the entry's ``motion``, else the activity's
-    name."""
-    if not all(isinstance(k, tuple) for k in entries):
-        entries = {
-            (s, a): e
-            for s, acts in entries.items()
-            for a, e in (acts or {}).items()
-            if isinstance(e, (dict, type(None)))
-        }
-    return {key: (e or {}).get("motion") or key[1] for key, e in entries.items()}
 
 
 def data_frames(entry):

@@ -692,3 +692,17 @@ def download_cmu_trial(subject, trial, dest, asf_path, base_url=CMU_BASE_URL, ex
     _write_sidecar(dest, digest)
     print(f"downloaded {url} -> {dest} (sha256 {digest})", file=sys.stderr)
     return digest
+
+
+def motion_map(entries):
+    """{(source, activity): the distinct motion} of data-set entries ({(source, activity): entry} or the
+    configuration's ``datasets`` mapping {source: {activity: entry}}): the entry's ``motion``, else the activity's
+    name."""
+    if not all(isinstance(k, tuple) for k in entries):
+        entries = {
+            (s, a): e
+            for s, acts in entries.items()
+            for a, e in (acts or {}).items()
+            if isinstance(e, (dict, type(None)))
+        }
+    return {key: (e or {}).get("motion") or key[1] for key, e in entries.items()}

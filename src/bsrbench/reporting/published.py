@@ -163,7 +163,7 @@ def publish_comparisons(src, dest):
 def published_motions(table):
     """{(source, activity): motion} of the data sets of a published table's study (its provenance's
     configfiles over config/datasets.yaml)."""
-    from ..config import motion_map
+    from ..datasets import motion_map
     from ..methods import study_datasets
 
     return motion_map(study_datasets(freshness.configfiles(table)))

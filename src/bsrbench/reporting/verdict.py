@@ -72,7 +72,7 @@ COLUMNS = [
 
 
 def with_motions(df, motions=None):
-    """``df`` with a ``motion`` column: ``motions[(source, activity)]`` (:func:`bsrbench.config.motion_map`), the
+    """``df`` with a ``motion`` column: ``motions[(source, activity)]`` (:func:`bsrbench.datasets.motion_map`), the
     activity's name where the map has none."""
     motions = motions or {}
     out = df.copy()
@@ -210,7 +210,7 @@ def verdict(df, *, motions=None, pm="PM", alpha=ALPHA):
     (:data:`UNITS`) and scope (each source, then :data:`ALL` when there are several), one row per method with its
     mean rank and, for the other methods, PM against it (with the bootstrap interval of the difference for the
     motions); the Friedman columns repeat on the rows of a unit and scope. ``motions``: {(source, activity):
-    motion} (:func:`bsrbench.config.motion_map`; default: the activity's name)."""
+    motion} (:func:`bsrbench.datasets.motion_map`; default: the activity's name)."""
     need = ["protocol", "source", "activity", "n_train", "method", "seed", "error"]
     missing = [c for c in need if c not in df.columns]
     if missing:
