@@ -398,29 +398,42 @@ def update_mechanisms(path, paragraph):
     )
 
 
-def reconcile_markdown(table, paper=_DEFAULT_PAPER):
-    """The reconciliation table (:func:`.reconcile.markdown`) of a published table, its study's methods and data
-    sets read from the configuration files its provenance names."""
+def _reconcile_inputs(table, paper=_DEFAULT_PAPER):
+    """A reconciliation table's rows, its study's configuration and data sets (the configuration files its
+    provenance names) and the paper's tables."""
     from ..methods import study_datasets
-    from . import reconcile
 
     files = freshness.configfiles(table)
-    df = read_results(table)
-    config, datasets, paper = (
+    return (
+        read_results(table),
         freshness.study_config(files),
         study_datasets(files),
         read_paper_tables(paper),
     )
+
+
+def reconcile_cells(table, paper=_DEFAULT_PAPER):
+    """:func:`.reconcile.cells` of a published reconciliation table."""
+    from . import reconcile
+
+    return reconcile.cells(*_reconcile_inputs(table, paper))
+
+
+def reconcile_markdown(table, paper=_DEFAULT_PAPER):
+    """The reconciliation table (:func:`.reconcile.markdown`) of a published table, its study's methods and data
+    sets read from the configuration files its provenance names, and PM's table under the nearest variant
+    (:func:`.reconcile.pm_markdown`) when the table holds PM."""
+    from . import reconcile
+
+    df, config, datasets, paper = _reconcile_inputs(table, paper)
     c = reconcile.cells(df, config, datasets, paper)
     text = reconcile.markdown(c, study=freshness.study_name(table))
     variant, _ = reconcile.nearest(reconcile.summary(c))
     rows, pm = reconcile.pm_rows(df, config, datasets, variant)
     if len(rows):
-        summaries = reconcile.pm_summary(
-            rows, pm, paper, metric=reconcile.METRICS[variant["metric"]]
-        )
-        pm_text = reconcile.pm_markdown(summaries, variant)
-        text += "\n\n" + pm_text
+        metric = reconcile.METRICS[variant["metric"]]
+        summaries = reconcile.pm_summary(rows, pm, paper, metric=metric)
+        text += "\n\n" + reconcile.pm_markdown(summaries, variant)
     return text
 
 
@@ -492,11 +505,23 @@ def main(argv=None):
         help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
         "table's study, reconcile or reconcile-pm)",
     )
+    pr = sub.add_parser(
+        "prose",
+        help="the numbers of the README, docs/ and config comments marked <!-- n:CLAIM -->: list those that "
+        "differ from the published tables (exit 1), or --update them",
+    )
+    pr.add_argument(
+        "--update", action="store_true", help="rewrite every marked number from the tables"
+    )
     freshness.add_commands(sub)
     args = ap.parse_args(argv)
     if args.cmd in freshness.COMMANDS:
         return freshness.run_command(args)
     try:
+        if args.cmd == "prose":
+            from . import prose
+
+            return prose.run_command(args)
         if args.cmd == "reconcile":
             text = reconcile_markdown(args.table, args.paper)
             if args.update:
