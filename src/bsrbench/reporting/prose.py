@@ -62,10 +62,12 @@ class Book:
     def reconcile_summary(self):
         """:func:`.reconcile.summary` of reconcile.csv and its nearest variant."""
         from . import reconcile
-        from .published import reconcile_cells
 
         s = reconcile.summary(
-            reconcile_cells(self.root / "reports" / "published" / "reconcile.csv")
+            reconcile.published_cells(
+                self.root / "reports" / "published" / "reconcile.csv",
+                self.root / "resources" / "paper-tables.csv",
+            )
         )
         return s, reconcile.nearest(s)[0]
 

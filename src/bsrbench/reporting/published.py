@@ -398,34 +398,13 @@ def update_mechanisms(path, paragraph):
     )
 
 
-def _reconcile_inputs(table, paper=_DEFAULT_PAPER):
-    """A reconciliation table's rows, its study's configuration and data sets (the configuration files its
-    provenance names) and the paper's tables."""
-    from ..methods import study_datasets
-
-    files = freshness.configfiles(table)
-    return (
-        read_results(table),
-        freshness.study_config(files),
-        study_datasets(files),
-        read_paper_tables(paper),
-    )
-
-
-def reconcile_cells(table, paper=_DEFAULT_PAPER):
-    """:func:`.reconcile.cells` of a published reconciliation table."""
-    from . import reconcile
-
-    return reconcile.cells(*_reconcile_inputs(table, paper))
-
-
 def reconcile_markdown(table, paper=_DEFAULT_PAPER):
     """The reconciliation table (:func:`.reconcile.markdown`) of a published table, its study's methods and data
     sets read from the configuration files its provenance names, and PM's table under the nearest variant
     (:func:`.reconcile.pm_markdown`) when the table holds PM."""
     from . import reconcile
 
-    df, config, datasets, paper = _reconcile_inputs(table, paper)
+    df, config, datasets, paper = reconcile.published_inputs(table, paper)
     c = reconcile.cells(df, config, datasets, paper)
     text = reconcile.markdown(c, study=freshness.study_name(table))
     variant, _ = reconcile.nearest(reconcile.summary(c))

@@ -328,3 +328,24 @@ def markdown(c, *, study="reconcile"):
         f"(mean distance {dist:.2f}{own}): {per}.",
     ]
     return "\n".join(lines)
+
+
+def published_inputs(table, paper):
+    """A published reconciliation table's rows, its study's configuration and data sets (the configuration files its
+    provenance names) and the paper's tables (``paper``: their CSV)."""
+    from ..methods import study_datasets
+    from . import freshness
+    from .tables import read_paper_tables, read_results
+
+    files = freshness.configfiles(table)
+    return (
+        read_results(table),
+        freshness.study_config(files),
+        study_datasets(files),
+        read_paper_tables(paper),
+    )
+
+
+def published_cells(table, paper):
+    """:func:`cells` of a published reconciliation table."""
+    return cells(*published_inputs(table, paper))
