@@ -1,14 +1,16 @@
 """Numbers in prose generated from the published tables (bsrbench.reporting.prose): none is stale, a changed one
-is found and restored, an unknown claim is refused, and claims agree with a hand computation."""
+is found and restored, an unknown claim or an unreadable table is refused in one line, and claims agree with a hand
+computation."""
 
 import pandas as pd
 import pytest
 
-from bsrbench.errors import InputError
+from bsrbench.errors import DataFileError, InputError
 from bsrbench.reporting import prose
 from bsrbench.reporting.published import main
 
 BOOK = prose.Book()
+PUBLISHED = prose.ROOT / "reports" / "published"
 
 
 def test_every_marked_number_is_its_claim_today():
@@ -24,34 +26,75 @@ def test_a_changed_number_is_reported_with_its_line_and_update_restores_it(tmp_p
     text = src.read_text(encoding="utf-8")
     line, name, value = next(m for m in prose.markers(src) if m[1] == "paper.cells")
     marked = f"<!-- n:{name} -->{value}<!-- /n -->"
+    assert text.count(marked) == 1
     changed = text.replace(marked, f"<!-- n:{name} -->28 (by hand)<!-- /n -->")
-    assert changed != text
     copy = tmp_path / "results.md"
     copy.write_text(changed, encoding="utf-8")
     assert prose.check([copy], book=BOOK) == [(copy, line, name, "28 (by hand)", value)]
     assert prose.update([copy], book=BOOK) == [copy]
     assert copy.read_text(encoding="utf-8") == text
+    assert prose.update([copy], book=BOOK) == []  # nothing left to rewrite
 
 
-def test_an_unknown_claim_is_refused_in_one_line(tmp_path, capsys):
+def test_an_unknown_claim_is_refused_in_one_line(tmp_path):
     f = tmp_path / "x.md"
     f.write_text("PM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n", encoding="utf-8")
-    with pytest.raises(InputError, match=r"unknown claims \['paper.pm_wins'\]"):
+    with pytest.raises(InputError, match=r"unknown claims \['paper.pm_wins'\]") as e:
+        prose.check([f], book=BOOK)
+    assert "\n" not in str(e.value)
+
+
+def test_the_command_refuses_an_unknown_claim_in_one_line(tmp_path, monkeypatch, capsys):
+    f = tmp_path / "x.md"
+    f.write_text("PM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n", encoding="utf-8")
+    monkeypatch.setattr(prose, "files", lambda root=None: [f])
+    assert main(["prose"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: unknown claims ['paper.pm_wins']") and err.count("\n") == 1
+
+
+def test_a_missing_table_is_named_in_one_line(tmp_path):
+    f = tmp_path / "x.md"
+    f.write_text("<!-- n:paper.cells -->32<!-- /n --> cells\n", encoding="utf-8")
+    with pytest.raises(DataFileError, match="paper.csv") as e:
+        prose.check([f], book=prose.Book(tmp_path))
+    assert "\n" not in str(e.value)
+
+
+def test_a_claim_that_cannot_be_computed_is_named(tmp_path, monkeypatch):
+    monkeypatch.setitem(prose.CLAIMS, "paper.broken", lambda book: book.cells()["no such method"])
+    f = tmp_path / "x.md"
+    f.write_text("<!-- n:paper.broken -->1<!-- /n -->\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"claim 'paper.broken' cannot be computed .*KeyError"):
         prose.check([f], book=BOOK)
 
 
 def test_claims_agree_with_a_hand_computation():
-    df = pd.read_csv(prose.ROOT / "reports" / "published" / "paper.csv")
+    df = pd.read_csv(PUBLISHED / "paper.csv")
     df = df[df["protocol"] == "random"]
     cells = df.groupby(["source", "activity", "n_train", "method"])["error"].mean().unstack()
     assert prose.CLAIMS["paper.cells"](BOOK) == str(len(cells))
     assert prose.CLAIMS["paper.pm_beats_nn"](BOOK) == str(int((cells["PM"] < cells["NN1"]).sum()))
     pm = df[(df["source"] == "mocap") & (df["method"] == "PM")]["coverage_90"].mean()
     assert prose.CLAIMS["paper.coverage.PM.mocap"](BOOK) == f"{100 * pm:.0f}%"
-    rc = pd.read_csv(prose.ROOT / "reports" / "published" / "reconcile.csv")
+    rc = pd.read_csv(PUBLISHED / "reconcile.csv")
     assert prose.CLAIMS["reconcile.rows"](BOOK) == f"{len(rc):,}"
+
+
+def test_ablation_claims_agree_with_a_hand_computation():
+    a = pd.read_csv(PUBLISHED / "ablation.csv")
+    k8 = a[a["method"] == "PMK8"]
+    ok = (k8["r_hat_log_likelihood"] < 1.05) & (k8["r_hat_g_xy"] < 1.05)
+    assert prose.CLAIMS["ablation.converged.PMK8"](BOOK) == f"{100 * ok.mean():.0f}%"
+    cells = a.groupby(["activity", "n_train", "method"])["error"].mean().unstack()
+    variants = [m for m in cells.columns if m.startswith("PM")]
+    best = cells[variants].min(axis=1)
+    assert prose.CLAIMS["ablation.best_beats_nn"](BOOK) == str(int((best < cells["NN1"]).sum()))
+    g = pd.read_csv(PUBLISHED / "paper-goal.csv")
+    g = g.groupby(["activity", "n_train", "method"])["error"].mean().unstack()
+    assert prose.CLAIMS["goal.below.PMK8"](BOOK) == str(int((g["PMK8"] < g["NN1"]).sum()))
 
 
 def test_the_command_exits_0_when_fresh(capsys):
     assert main(["prose"]) == 0
-    assert "0 differ" in capsys.readouterr().err
+    assert "; 0 differ" in capsys.readouterr().err

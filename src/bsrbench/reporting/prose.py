@@ -8,15 +8,19 @@ from a published table through an inline marker, invisible in rendered markdown:
 The text between the markers is the value of the named claim (:data:`CLAIMS`, a function of the published tables,
 :class:`Book`). ``python -m bsrbench.reporting.published prose`` lists every marker whose text differs from its
 claim's value today (exit 1), ``--update`` rewrites them; the test suite runs the check, so a regenerated table
-that moves a number, or a number edited by hand, fails until the text is regenerated.
+that moves a number, or a number edited by hand, fails until the text is regenerated. Where a number's words
+depend on its value ("the highest", "none"), the claim returns the words too.
+
+Numbers that no published table holds (a run's wall time, a measurement against an older table) stay hand-written
+and say which run or which table they describe.
 """
 
+import json
 import re
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ..errors import DataFileError, InputError
 from ..io import atomic_path
@@ -28,52 +32,68 @@ MARKER = re.compile(r"<!-- n:([A-Za-z0-9_.-]+) -->(.*?)<!-- /n -->", re.S)
 
 
 class Book:
-    """The published tables, read once when first asked for (``reports/published`` of ``root``)."""
+    """The published tables (``reports/published`` of ``root``) and the summaries the claims share, each read or
+    computed once when first asked for."""
 
     def __init__(self, root=ROOT):
         self.root = Path(root)
 
+    def path(self, name):
+        return self.root / "reports" / "published" / name
+
     def _read(self, name):
         from .tables import read_results
 
-        return read_results(self.root / "reports" / "published" / name)
+        return read_results(self.path(name))
 
+    # ----------------------------------------------------------------------------------------- the tables
     @cached_property
     def paper(self):
         return self._read("paper.csv")
 
     @cached_property
     def comparisons(self):
-        return pd.read_csv(self.root / "reports" / "published" / "paper-comparisons.csv")
+        from .comparisons import read_comparisons
+
+        return read_comparisons(self.path("paper-comparisons.csv"))
 
     @cached_property
-    def mechanisms(self):
-        return self._read("ablation-mechanisms.csv")
+    def verdict(self):
+        from .verdict import read_verdict
+
+        return read_verdict(self.path("paper-verdict.csv"))
 
     @cached_property
     def ablation(self):
         return self._read("ablation.csv")
 
     @cached_property
+    def goal(self):
+        return self._read("paper-goal.csv")
+
+    @cached_property
+    def crosstrial(self):
+        return self._read("ablation-crosstrial.csv")
+
+    @cached_property
+    def mechanisms(self):
+        return self._read("ablation-mechanisms.csv")
+
+    @cached_property
     def reconcile(self):
         return self._read("reconcile.csv")
 
     @cached_property
-    def reconcile_summary(self):
-        """:func:`.reconcile.summary` of reconcile.csv and its nearest variant."""
-        from . import reconcile
-
-        s = reconcile.summary(
-            reconcile.published_cells(
-                self.root / "reports" / "published" / "reconcile.csv",
-                self.root / "resources" / "paper-tables.csv",
-            )
-        )
-        return s, reconcile.nearest(s)[0]
+    def reconcile_pm(self):
+        return self._read("reconcile-pm.csv")
 
     @cached_property
-    def verdict(self):
-        return pd.read_csv(self.root / "reports" / "published" / "paper-verdict.csv")
+    def part_rows(self):
+        """{part: rows} of the parts of published tables (``reports/published/parts/*.csv``)."""
+        from ..io import read_csv
+
+        parts = sorted(self.path("parts").glob("*.csv"))
+        return {p.stem: len(read_csv(p, "a part of a published table")) for p in parts}
 
     @cached_property
     def paper_tables(self):
@@ -81,6 +101,15 @@ class Book:
 
         return read_paper_tables(self.root / "resources" / "paper-tables.csv")
 
+    @cached_property
+    def labels(self):
+        """{method: label} of the studies' registries (the paper's labels where two studies name a method)."""
+        from ..methods import configured
+
+        studies = ("ablation-mechanisms", "ablation", "paper")
+        return {m: r.label for s in studies for m, r in configured(s).items()}
+
+    # ------------------------------------------------------------------------------------ shared summaries
     def cells(self, protocol="random"):
         """Cell means of paper.csv: (source, activity, paper_activity, n_train) x method."""
         d = self.paper[self.paper["protocol"] == protocol]
@@ -89,6 +118,44 @@ class Book:
             .mean()
             .unstack()
         )
+
+    @cached_property
+    def reconcile_summary(self):
+        """:func:`.reconcile.summary` of reconcile.csv and its nearest variant."""
+        from . import reconcile
+
+        s = reconcile.summary(
+            reconcile.published_cells(
+                self.path("reconcile.csv"), self.root / "resources" / "paper-tables.csv"
+            )
+        )
+        return s, reconcile.nearest(s)[0]
+
+    @cached_property
+    def ablation_goal(self):
+        """:func:`.ablation.goal_table` of ablation.csv: per variant, the cells converged, below 1-NN and both."""
+        from .ablation import goal_table
+
+        return goal_table(self.ablation, variants=chained(self.ablation)).set_index("method")
+
+    @cached_property
+    def ablation_best(self):
+        """:func:`.ablation.ablation_cells` of ablation.csv: per cell the best variant, 1-NN and the best
+        baseline."""
+        from .ablation import ablation_cells
+
+        return ablation_cells(self.ablation, variants=chained(self.ablation))
+
+    @cached_property
+    def mechanism_tables(self):
+        """``(table, pooled, fit)`` of ablation-mechanisms.csv (:mod:`.mechanisms`): each variant against PM per
+        cell, the differences averaged over the activities per N, the training and test errors."""
+        from . import mechanisms as mech
+
+        df = self.mechanisms
+        variants = mech.variants_from_results(df, base="PM")
+        table = mech.mechanism_table(df, None, base="PM", variants=variants)
+        return table, mech.pooled_by_n(table), mech.fit_table(df, base="PM", variants=variants)
 
 
 # ------------------------------------------------------------------------------------------------ formats
@@ -106,6 +173,49 @@ def span(values, digits=2, sep="-"):
     return lo if lo == hi else f"{lo}{sep}{hi}"
 
 
+def pct_span(fractions):
+    """``lo-hi%`` of fractions as whole percentages (one value when they round alike)."""
+    return span([100 * f for f in fractions], 0) + "%"
+
+
+def join(items):
+    """``a``, ``a and b``, ``a, b and c``."""
+    items = [str(i) for i in items]
+    return " and ".join(items) if len(items) < 3 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def count(n, of=None):
+    """``n``, or ``n of the m``."""
+    return str(int(n)) if of is None else f"{int(n)} of the {int(of)}"
+
+
+def activity(a):
+    return str(a).replace("_", " ")
+
+
+def cells_text(cells):
+    """``acrobatics and run at N = 30; golf at N = 30 and 60`` of (activity, N) pairs; ``none`` for none."""
+    ns = {}
+    for a, n in cells:
+        ns.setdefault(a, []).append(int(n))
+    groups = {}
+    for a, n in sorted(ns.items(), key=lambda x: (sorted(x[1]), x[0])):
+        groups.setdefault(tuple(sorted(n)), []).append(activity(a))
+    return "; ".join(f"{join(acts)} at N = {join(n)}" for n, acts in groups.items()) or "none"
+
+
+def chained(df):
+    """The methods of a table run with several chains per split (the PM variants of an ablation)."""
+    return sorted(set(df.loc[df["n_chains"].fillna(1) > 1, "method"]))
+
+
+def converged(rows):
+    """Per row: R-hat below :data:`.convergence.RHAT_OK` on the log-likelihood and g_xy."""
+    from .convergence import converged as ok
+
+    return ok(rows)
+
+
 # ------------------------------------------------------------------------------------------------ claims
 #: {name: function(Book) -> str}; filled by :func:`claim`.
 CLAIMS = {}
@@ -121,15 +231,22 @@ def claim(name):
     return register
 
 
+def claims(pattern, keys, f):
+    """Register ``f(book, *key)`` as the claim ``pattern.format(*key)`` for each key."""
+    for key in keys:
+        key = key if isinstance(key, tuple) else (key,)
+        claim(pattern.format(*key))(lambda book, key=key: f(book, *key))
+
+
+# ----------------------------------------------------------------------------- paper.csv: the paper's claim
 def _paper_ratio(book, source):
     """Our error over the paper's per tuned baseline (median over the cells), the baselines' range."""
     from ..paper import PAPER_METHODS
+    from .tables import paper_key
 
     w = book.cells()
     w = w[w.index.get_level_values("source") == source]
     pt = book.paper_tables.set_index(["key", "n_train", "method"])["mean_deg"]
-    from .tables import paper_key
-
     out = []
     for m in [m for m in PAPER_METHODS if m != "PM"]:
         r = [
@@ -144,6 +261,11 @@ def _paper_ratio(book, source):
 @claim("paper.cells")
 def _(book):
     return str(len(book.cells()))
+
+
+@claim("paper.cells.mocap")
+def _(book):
+    return str(int((book.cells().index.get_level_values("source") == "mocap").sum()))
 
 
 @claim("paper.pm_beats_nn")
@@ -162,27 +284,6 @@ def _(book):
     return span(_paper_ratio(book, "mocap"))
 
 
-def _mean_by_source(book, column, method, source):
-    d = book.paper[(book.paper["protocol"] == "random") & (book.paper["source"] == source)]
-    cells = d.groupby(["activity", "n_train", "method"])[column].mean().unstack()
-    return float(cells[method].mean())
-
-
-for _source, _methods in (("hsc", ("SR", "TGP", "RVM", "Ridge", "NN1")), ("mocap", ("SR", "TGP"))):
-    for _method in _methods:
-        CLAIMS[f"paper.mpjpe.{_method}.{_source}"] = lambda book, m=_method, s=_source: fmt(
-            _mean_by_source(book, "mpjpe_mm", m, s), 1
-        )
-for _source in ("hsc", "mocap"):
-    CLAIMS[f"paper.coverage.PM.{_source}"] = lambda book, s=_source: pct(
-        _mean_by_source(book, "coverage_90", "PM", s)
-    )
-    CLAIMS[f"paper.conformal.PM.{_source}"] = lambda book, s=_source: pct(
-        _mean_by_source(book, "conformal_coverage", "PM", s)
-    )
-
-
-# ------------------------------------------------------------------------------------------- paper.csv, prose
 BASELINES = ("RVM", "TGP", "SR", "DDL")
 
 
@@ -197,7 +298,7 @@ def _(book):
 def _(book):
     w = book.cells()
     idx = w.index[w["PM"] < w["NN1"]]
-    return ", ".join(f"{s} {a.replace('_', ' ')} N = {n}" for s, a, _, n in idx)
+    return ", ".join(f"{s} {activity(a)} N = {n}" for s, a, _, n in idx)
 
 
 @claim("paper.nn_minus_pm_n60")
@@ -225,7 +326,63 @@ def _(book):
     g = w.xs(("hsc", "golf"), level=("source", "activity"))["PM"].droplevel("paper_activity")
     first, *rest = [fmt(v, 1) for v in g.sort_index()]
     ns = [str(n) for n in g.sort_index().index]
-    return f"{first} at N = {ns[0]}, {', '.join(rest[:-1])} and {rest[-1]} at N = {', '.join(ns[1:-1])} and {ns[-1]}"
+    return f"{first} at N = {ns[0]}, {join(rest)} at N = {join(ns[1:])}"
+
+
+# ---------------------------------------------------------------------- paper.csv: the tests, the verdict
+@claim("paper.nt_over_n_max")
+def _(book):
+    d = book.paper[book.paper["protocol"] == "random"]
+    return fmt(float((0.1 + d["n_test"] / d["n_train"]).max()), 1)
+
+
+@claim("paper.ci_widening_max")
+def _(book):
+    c = book.comparisons
+    r = (c["ci_high"] - c["ci_low"]) / (c["paired_ci_high"] - c["paired_ci_low"])
+    return fmt(float(r.max()), 1)
+
+
+def _motions(book):
+    v = book.verdict
+    return int(v[(v["unit"] == "motion") & (v["scope"] == "all")]["n_blocks"].max())
+
+
+@claim("paper.motions")
+def _(book):
+    return str(_motions(book))
+
+
+@claim("paper.motion_p")
+def _(book):
+    from .verdict import smallest_p
+
+    return f"1/{round(1 / smallest_p(_motions(book), 1))}"
+
+
+# ------------------------------------------------------------------- paper.csv: today's metrics and baselines
+def _mean_by_source(book, column, method, source):
+    d = book.paper[(book.paper["protocol"] == "random") & (book.paper["source"] == source)]
+    cells = d.groupby(["activity", "n_train", "method"])[column].mean().unstack()
+    return float(cells[method].mean())
+
+
+claims(
+    "paper.mpjpe.{0}.{1}",
+    [("SR", "hsc"), ("TGP", "hsc"), ("RVM", "hsc"), ("Ridge", "hsc"), ("NN1", "hsc")]
+    + [("SR", "mocap"), ("TGP", "mocap")],
+    lambda book, m, s: fmt(_mean_by_source(book, "mpjpe_mm", m, s), 1),
+)
+claims(
+    "paper.coverage.PM.{0}",
+    ["hsc", "mocap"],
+    lambda book, s: pct(_mean_by_source(book, "coverage_90", "PM", s)),
+)
+claims(
+    "paper.conformal.PM.{0}",
+    ["hsc", "mocap"],
+    lambda book, s: pct(_mean_by_source(book, "conformal_coverage", "PM", s)),
+)
 
 
 @claim("paper.pm_mpjpe_highest")
@@ -253,19 +410,61 @@ def _(book):
     return fmt(r["KRR"], 1) + (" and first" if r.idxmin() == "KRR" else "")
 
 
+@claim("paper.rank.RF_MLP")
+def _(book):
+    return span([_ranks(book, s)[m] for s in ("hsc", "mocap") for m in ("RF", "MLP")], 0)
+
+
+@claim("paper.behind_RF_MLP")
+def _(book):
+    """The methods whose mean rank is behind both the random forest's and the MLP's, per source."""
+    per = {}
+    for s in ("hsc", "mocap"):
+        r = _ranks(book, s)
+        behind = r[r > r[["RF", "MLP"]].max()].sort_values()
+        per[s] = join(book.labels.get(m, m) for m in behind.index) or "none"
+    if len(set(per.values())) == 1:
+        (only,) = set(per.values())
+        return f"{only} only" if " and " not in only else only
+    return " and of ".join(
+        f"{v}{' only' if ' and ' not in v else ''} on {s}" for s, v in per.items()
+    )
+
+
+def _uncertainty(book):
+    """Per (source, method) of the methods with a predictive distribution: the means of the scores."""
+    d = book.paper[(book.paper["protocol"] == "random") & book.paper["crps"].notna()]
+    return d.groupby(["source", "method"])[["crps", "coverage_90"]].mean()
+
+
+def _per_source(book, best):
+    """The label of ``best(scores of a source)``, once if it is the same on both sources."""
+    u = _uncertainty(book)
+    found = {s: book.labels.get(best(u.xs(s)), best(u.xs(s))) for s in ("hsc", "mocap")}
+    if len(set(found.values())) == 1:
+        return f"{found['hsc']}, on both sources"
+    return ", ".join(f"{m} on {s}" for s, m in found.items())
+
+
+@claim("paper.best_crps")
+def _(book):
+    return _per_source(book, lambda u: u["crps"].idxmin())
+
+
+@claim("paper.best_coverage")
+def _(book):
+    return _per_source(book, lambda u: (u["coverage_90"] - 0.9).abs().idxmin())
+
+
 @claim("paper.conformal_range")
 def _(book):
     d = book.paper[(book.paper["protocol"] == "random") & book.paper["conformal_coverage"].notna()]
-    m = d.groupby(["source", "method"])["conformal_coverage"].mean() * 100
-    lo, hi = f"{m.min():.0f}", f"{m.max():.0f}"
-    return f"{lo}%" if lo == hi else f"{lo}-{hi}%"
+    m = d.groupby(["source", "method"])["conformal_coverage"].mean()
+    return pct_span(m)
 
 
 @claim("paper.uncertainty_table")
 def _(book):
-    from ..methods import configured
-
-    labels = {m: r.label for m, r in configured("paper").items()}
     d = book.paper[book.paper["protocol"] == "random"]
     rows = []
     for source in ("hsc", "mocap"):
@@ -275,7 +474,7 @@ def _(book):
             conf = g["conformal_coverage"].mean()
             cells = [
                 source,
-                labels.get(m, m),
+                book.labels.get(m, m),
                 fmt(g["error"].mean()),
                 f"{nlpd:.1e}" if nlpd >= 1e3 else fmt(nlpd),
                 fmt(g["nlpd"].median()),
@@ -291,39 +490,387 @@ def _(book):
     return "\n\n" + head + "\n".join(rows) + "\n\n  "
 
 
-@claim("paper.nt_over_n_max")
+def _golf200(book, method, column):
+    d = book.paper
+    d = d[(d["protocol"] == "random") & (d["source"] == "hsc") & (d["activity"] == "golf")]
+    d = d[(d["n_train"] == 200) & (d["method"] == method)]
+    return fmt(float(d[column].mean()), 1)
+
+
+claims(
+    "paper.golf200.{0}.{1}",
+    [(m, c) for m in ("PM", "Ridge") for c in ("train", "test")],
+    lambda book, m, c: _golf200(book, m, "train_error" if c == "train" else "error"),
+)
+
+
+# ------------------------------------------------------------------------ paper.csv: the study's shape
+@claim("paper.rows")
 def _(book):
-    d = book.paper[book.paper["protocol"] == "random"]
-    return fmt(float((0.1 + d["n_test"] / d["n_train"]).max()), 1)
+    return f"{len(book.paper):,}"
 
 
-@claim("paper.ci_widening_max")
+@claim("paper.methods")
 def _(book):
-    c = book.comparisons
-    r = (c["ci_high"] - c["ci_low"]) / (c["paired_ci_high"] - c["paired_ci_low"])
-    return fmt(float(r.max()), 1)
+    return str(book.paper["method"].nunique())
 
 
-@claim("paper.motions")
+@claim("paper.seeds")
 def _(book):
-    v = book.verdict
-    return str(int(v[(v["unit"] == "motion") & (v["scope"] == "all")]["n_blocks"].max()))
+    return str(book.paper["seed"].nunique())
 
 
-@claim("paper.motion_p")
+@claim("paper.fit_jobs")
 def _(book):
-    v = book.verdict
-    n = int(v[(v["unit"] == "motion") & (v["scope"] == "all")]["n_blocks"].max())
-    return f"1/{2**n}"
+    """One fit job per (cell, method): the seeds of a cell run in one job."""
+    return (
+        f"{book.paper.groupby(['protocol', 'source', 'activity', 'n_train', 'method']).ngroups:,}"
+    )
+
+
+@claim("paper.cv_jobs")
+def _(book):
+    """One CV job per (cell, method) with a CV (``cv_seconds`` recorded)."""
+    g = book.paper.groupby(["protocol", "source", "activity", "n_train", "method"])
+    return f"{int(g['cv_seconds'].first().notna().sum()):,}"
+
+
+# ------------------------------------------------- paper.csv: PM's CV choices (the mechanisms' fixed setting)
+def _pm_choices(book, key):
+    """PM's CV choice of ``key`` per hsc (activity, N) of paper.csv, and the value ablation-mechanisms.csv's PM
+    is fixed at."""
+    d = book.paper
+    d = d[(d["protocol"] == "random") & (d["source"] == "hsc") & (d["method"] == "PM")]
+    chosen = d.groupby(["activity", "n_train"])["params"].first().map(lambda p: json.loads(p)[key])
+    m = book.mechanisms
+    fixed = json.loads(m.loc[m["method"] == "PM", "params"].iloc[0])[key]
+    return chosen, fixed
+
+
+@claim("paper.cv.K_fixed_count")
+def _(book):
+    chosen, fixed = _pm_choices(book, "n_atoms")
+    return count((chosen == fixed).sum(), len(chosen))
+
+
+@claim("paper.cv.K_others")
+def _(book):
+    chosen, fixed = _pm_choices(book, "n_atoms")
+    other = chosen[chosen != fixed]
+    return (
+        ", ".join(f"{k} for {activity(a)} N = {n}" for (a, n), k in other.items()) or "none other"
+    )
+
+
+@claim("paper.cv.j_fixed_count")
+def _(book):
+    chosen, fixed = _pm_choices(book, "n_neighbors")
+    return count((chosen == fixed).sum())
+
+
+@claim("paper.cv.j_others")
+def _(book):
+    chosen, fixed = _pm_choices(book, "n_neighbors")
+    other = chosen[chosen != fixed].value_counts().sort_index()
+    return ", ".join(f"{j} in {n}" for j, n in other.items()) or "none other"
+
+
+# ------------------------------------------------------------------------------------------- ablation.csv
+def _ablation_converged(book, method):
+    rows = book.ablation[book.ablation["method"] == method]
+    return float(converged(rows).mean())
+
+
+@claim("ablation.rows")
+def _(book):
+    return f"{len(book.ablation):,}"
+
+
+@claim("ablation.part_rows")
+def _(book):
+    """The rows of each activity's part (all equal, else each named)."""
+    rows = {
+        k[len("ablation-") :]: n for k, n in book.part_rows.items() if k.startswith("ablation-")
+    }
+    rows.pop("inexact", None)
+    if len(set(rows.values())) == 1:
+        return f"{next(iter(rows.values())):,} rows each"
+    return ", ".join(f"{activity(a)} {n:,} rows" for a, n in rows.items())
+
+
+@claim("ablation.inexact_rows")
+def _(book):
+    return f"{book.part_rows['ablation-inexact']:,}"
+
+
+@claim("ablation.variants")
+def _(book):
+    return str(len(chained(book.ablation)))
+
+
+@claim("ablation.cells")
+def _(book):
+    return str(len(book.ablation_best))
+
+
+@claim("ablation.all_converged")
+def _(book):
+    """How many variants converged in every split, with the verb."""
+    a = book.ablation
+    a = a[a["method"].isin(chained(a))]
+    n = int(converged(a).groupby(a["method"]).all().sum())
+    return {0: "No variant has", 1: "One variant has"}.get(n, f"{n} variants have")
+
+
+claims(
+    "ablation.converged.{0}",
+    ["PMK8", "PMK8s5000", "PMK8s5000text", "PMK16", "PMs5000", "PMtext"],
+    lambda book, m: pct(_ablation_converged(book, m)),
+)
+
+
+@claim("ablation.converged.exact_k64")
+def _(book):
+    """The range of the converged splits over the exact variants with K >= 64 (the paper's grid)."""
+    g = book.ablation_goal
+    a = book.ablation
+    k = a.groupby("method")["params"].first().map(lambda p: json.loads(p).get("n_atoms", 0))
+    ms = [m for m in g.index if g.at[m, "exact"] and k[m] >= 64]
+    return pct_span([_ablation_converged(book, m) for m in ms])
+
+
+@claim("ablation.best_beats_nn")
+def _(book):
+    b = book.ablation_best
+    return str(int((b["best_variant_error"] < b["nn_error"]).sum()))
+
+
+@claim("ablation.best_beats_baseline")
+def _(book):
+    b = book.ablation_best
+    return str(int((b["best_variant_error"] < b["best_baseline_error"]).sum()))
+
+
+@claim("ablation.best_is.PMtext")
+def _(book):
+    return str(int((book.ablation_best["best_variant"] == "PMtext").sum()))
+
+
+@claim("ablation.best_is.text_5000")
+def _(book):
+    """The cells whose best variant is the paper-text prediction with K = 8 or 16 and 5000 sweeps."""
+    return str(
+        int(book.ablation_best["best_variant"].isin(["PMK8s5000text", "PMK16s5000text"]).sum())
+    )
+
+
+@claim("ablation.goal_top")
+def _(book):
+    """The exact variant nearest the goal (:func:`.ablation.goal_table`'s first)."""
+    g = book.ablation_goal
+    return book.labels.get(g[g["exact"]].index[0], g[g["exact"]].index[0])
+
+
+@claim("ablation.goal_top_both")
+def _(book):
+    g = book.ablation_goal
+    return str(int(g[g["exact"]]["both"].iloc[0]))
+
+
+claims(
+    "ablation.goal.{1}.{0}",
+    [(m, w) for m in ("PMK8", "PMK16s5000text") for w in ("converged", "beats_nn", "both")],
+    lambda book, m, w: str(int(book.ablation_goal.at[m, w])),
+)
+
+
+# ----------------------------------------------------------------------------------------- paper-goal.csv
+def _goal_cells(book, method, what):
+    """The (activity, N) cells of paper-goal.csv where ``method`` is below 1-NN, has every split converged, or
+    both."""
+    g = book.goal
+    means = g.groupby(["activity", "n_train", "method"])["error"].mean().unstack()
+    below = means[method] < means["NN1"]
+    rows = g[g["method"] == method]
+    conv = converged(rows).groupby([rows["activity"], rows["n_train"]]).all()
+    ok = {"below": below, "converged": conv, "both": below & conv}[what]
+    return list(ok[ok].index)
+
+
+GOAL_VARIANTS = ("PMK8", "PMK16s5000text")
+claims(
+    "goal.{1}.{0}",
+    [(m, w) for m in GOAL_VARIANTS for w in ("below", "converged", "both")],
+    lambda book, m, w: str(len(_goal_cells(book, m, w))),
+)
+claims(
+    "goal.{1}_cells.{0}",
+    [(m, w) for m in GOAL_VARIANTS for w in ("below", "converged", "both")],
+    lambda book, m, w: cells_text(_goal_cells(book, m, w)),
+)
+
+
+@claim("goal.cells")
+def _(book):
+    return str(book.goal.groupby(["activity", "n_train"]).ngroups)
+
+
+def _goal_nn(book):
+    """1-NN's rows of paper-goal.csv beside the same splits' rows of paper.csv."""
+    key = ["protocol", "source", "activity", "n_train", "seed"]
+    g = book.goal[book.goal["method"] == "NN1"]
+    p = book.paper[book.paper["method"] == "NN1"]
+    return g.merge(p, on=key, how="left", suffixes=("", "_paper"))
+
+
+@claim("goal.nn_rows")
+def _(book):
+    return str(len(_goal_nn(book)))
+
+
+@claim("goal.nn_equal")
+def _(book):
+    m = _goal_nn(book)
+    d = (m["error"] - m["error_paper"]).abs()
+    where = "those of `reports/published/paper.csv`"
+    if d.isna().any():
+        return f"are not all in `reports/published/paper.csv` ({int(d.isna().sum())} missing)"
+    return (
+        f"equal {where} to the last digit"
+        if d.max() == 0
+        else f"differ from {where} by up to {d.max():.1e} deg"
+    )
+
+
+# ---------------------------------------------------------------------------------- ablation-crosstrial.csv
+def _cross(book, n):
+    """The cross-trial means at N = ``n``: variants, 1-NN, the baselines (Series each)."""
+    x = book.crosstrial
+    means = x[x["n_train"] == n].groupby("method")["error"].mean()
+    variants = chained(x)
+    baselines = [m for m in means.index if m not in variants and m != "NN1"]
+    return means[variants], float(means["NN1"]), means[baselines]
+
+
+@claim("crosstrial.variants")
+def _(book):
+    return str(len(chained(book.crosstrial)))
+
+
+@claim("crosstrial.above_nn_names.30")
+def _(book):
+    v, nn, _ = _cross(book, 30)
+    return join(book.labels.get(m, m) for m in v[v >= nn].index) or "none"
+
+
+@claim("crosstrial.above_nn.30")
+def _(book):
+    v, nn, _ = _cross(book, 30)
+    return ", ".join(f"{book.labels.get(m, m)} {fmt(e)}" for m, e in v[v >= nn].items()) or "none"
+
+
+@claim("crosstrial.below_nn.30")
+def _(book):
+    v, nn, _ = _cross(book, 30)
+    return span(v[v < nn]) if (v < nn).any() else "none"
+
+
+claims("crosstrial.nn.{0}", [30, 100, 200], lambda book, n: fmt(_cross(book, n)[1]))
+claims("crosstrial.best_variant.{0}", [100, 200], lambda book, n: fmt(_cross(book, n)[0].min()))
+
+
+def _best_baseline(book, n):
+    b = _cross(book, n)[2]
+    return f"{book.labels.get(b.idxmin(), b.idxmin())} {fmt(b.min())}"
+
+
+claims("crosstrial.best_baseline.{0}", [30, 100, 200], _best_baseline)
+
+
+# ---------------------------------------------------------------------------------- ablation-mechanisms.csv
+def _pooled(book, reason):
+    table, pooled, _ = book.mechanism_tables
+    methods = set(table.loc[table["reason"] == reason, "method"])
+    return table[table["method"].isin(methods)], pooled[pooled["method"].isin(methods)]
+
+
+@claim("mech.rows")
+def _(book):
+    return f"{len(book.mechanisms):,}"
+
+
+@claim("mech.pose.max_change")
+def _(book):
+    return fmt(float(_pooled(book, "pose")[1]["mean_diff"].abs().max()))
+
+
+@claim("mech.pose.intervals")
+def _(book):
+    p = _pooled(book, "pose")[1]
+    out = int(((p["ci_low"] > 0) | (p["ci_high"] < 0)).sum())
+    return "all contain zero" if out == 0 else f"exclude zero in {out} of {len(p)} cases"
+
+
+@claim("mech.pose.comparisons")
+def _(book):
+    return str(len(_pooled(book, "pose")[0]))
+
+
+@claim("mech.pose.significant")
+def _(book):
+    n = int(_pooled(book, "pose")[0]["verdict"].isin(["worse", "better"]).sum())
+    return "none" if n == 0 else str(n)
+
+
+@claim("mech.one.range")
+def _(book):
+    return span(_pooled(book, "averaging")[1]["mean_diff"], 1)
+
+
+@claim("mech.one.above_zero")
+def _(book):
+    p = _pooled(book, "averaging")[1]
+    ns = [str(int(n)) for n in p.loc[p["ci_low"] > 0, "n_train"]]
+    return f"N = {join(ns)}" if ns else "no N"
+
+
+@claim("mech.one.significant")
+def _(book):
+    return str(int(_pooled(book, "averaging")[0]["verdict"].isin(["worse", "better"]).sum()))
+
+
+@claim("mech.one.cells")
+def _(book):
+    return str(len(_pooled(book, "averaging")[0]))
+
+
+def _fit(book, method):
+    fit = book.mechanism_tables[2]
+    return fit[fit["method"] == method].set_index("n_train")
+
+
+claims("mech.train.{0}", ["PM", "PMone"], lambda book, m: span(_fit(book, m)["train_error"], 1))
+claims(
+    "mech.gap.{0}.{1}",
+    [(m, n) for m in ("PMone", "PM") for n in (30, 200)],
+    lambda book, m, n: fmt(
+        _fit(book, m).at[n, "test_error"] - _fit(book, m).at[n, "train_error"], 1
+    ),
+)
 
 
 # -------------------------------------------------------------------------------------------- reconcile.csv
-def _reconcile_ratios(book, splits, method=None, nearest=False):
+def _reconcile_variant(book, splits, nearest=False):
     s, best = book.reconcile_summary
     s = s[s["splits"] == splits]
     if nearest:
         for f in ("frames", "setting", "metric"):
             s = s[s[f] == best[f]]
+    return s
+
+
+def _reconcile_ratios(book, splits, method=None, nearest=False):
+    s = _reconcile_variant(book, splits, nearest)
     s = s[s["method"] == method] if method else s[s["method"] != "1-NN"]
     return span(s["median_ratio"].astype(float))
 
@@ -348,9 +895,35 @@ def _(book):
     return _reconcile_ratios(book, book.reconcile_summary[1]["splits"], nearest=True)
 
 
+@claim("reconcile.nearest_nn")
+def _(book):
+    return _reconcile_ratios(book, book.reconcile_summary[1]["splits"], "1-NN", nearest=True)
+
+
+@claim("reconcile.nearest_within")
+def _(book):
+    """The cells where a baseline's mean lies within the paper's std, under the nearest variant."""
+    s = _reconcile_variant(book, book.reconcile_summary[1]["splits"], nearest=True)
+    s = s[s["method"] != "1-NN"]
+    return count(s["within"].sum(), s["cells"].sum())
+
+
 @claim("reconcile.blocked_nn")
 def _(book):
     return _reconcile_ratios(book, "blocked", "1-NN")
+
+
+# ----------------------------------------------------------------------------------------- reconcile-pm.csv
+def _disagree(book, method):
+    """The share of ``method``'s splits of reconcile-pm.csv whose chains disagree (split R-hat of the test error
+    above :data:`.convergence.RHAT_STRICT`)."""
+    from .convergence import RHAT_STRICT
+
+    r = book.reconcile_pm
+    return pct(float((r.loc[r["method"] == method, "r_hat_test_error"] > RHAT_STRICT).mean()))
+
+
+claims("reconcile_pm.disagree.{0}", ["PM", "PMfair"], _disagree)
 
 
 # ------------------------------------------------------------------------------------------------ files
@@ -362,9 +935,17 @@ def files(root=ROOT):
     return sorted(out)
 
 
+def _read_text(path):
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise DataFileError(path, f"cannot be read ({why}); expected a UTF-8 text file") from None
+
+
 def markers(path):
     """``[(line, name, text)]`` of the markers of ``path``."""
-    text = Path(path).read_text(encoding="utf-8")
+    text = _read_text(path)
     return [
         (text.count("\n", 0, m.start()) + 1, m.group(1), m.group(2)) for m in MARKER.finditer(text)
     ]
@@ -377,7 +958,19 @@ def values(names, book):
         raise InputError(
             f"unknown claims {unknown}; bsrbench.reporting.prose.CLAIMS defines {len(CLAIMS)}"
         )
-    return {n: CLAIMS[n](book) for n in sorted(set(names))}
+    out = {}
+    for n in sorted(set(names)):
+        try:
+            out[n] = CLAIMS[n](book)
+        except InputError:
+            raise
+        except (KeyError, IndexError, ValueError, TypeError, ZeroDivisionError) as exc:
+            # a table without the rows or columns the claim reads: one line naming the claim
+            raise InputError(
+                f"claim {n!r} cannot be computed from the published tables in {book.path('')}: "
+                f"{type(exc).__name__}: {exc}"
+            ) from None
+    return out
 
 
 def check(paths=None, book=None, root=ROOT):
@@ -395,7 +988,7 @@ def update(paths=None, book=None, root=ROOT):
     book = book or Book(root)
     changed = []
     for p in paths:
-        text = Path(p).read_text(encoding="utf-8")
+        text = _read_text(p)
         now = values([m.group(1) for m in MARKER.finditer(text)], book)
         new = MARKER.sub(
             lambda m, now=now: f"<!-- n:{m.group(1)} -->{now[m.group(1)]}<!-- /n -->", text
@@ -415,20 +1008,29 @@ def used(root=ROOT):
     return {n for p in files(root) for _, n, _ in markers(p)}
 
 
+def _shown(path):
+    """``path`` relative to the checkout where it is inside it."""
+    path = Path(path)
+    return path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+
+
 def run_command(args):
     """``prose``: list the markers that differ from their claims (exit 1), or ``--update`` them (exit 0)."""
     import sys
 
     if args.update:
         for p in update():
-            print(f"{p}: updated", file=sys.stderr)
+            print(f"{_shown(p)}: updated", file=sys.stderr)
         return 0
     bad = check()
     for p, line, name, written, today in bad:
-        print(f"{p}:{line}: {name} is {written!r} in the text, {today!r} from the tables today")
-    n = sum(len(markers(p)) for p in files())
+        print(
+            f"{_shown(p)}:{line}: {name} is {written!r} in the text, {today!r} from the tables today"
+        )
+    per_file = [len(markers(p)) for p in files()]
     print(
-        f"{n} numbers from the published tables in {len(files())} files; {len(bad)} differ",
+        f"{sum(per_file)} numbers from the published tables in {sum(n > 0 for n in per_file)} files; "
+        f"{len(bad)} differ",
         file=sys.stderr,
     )
     return 1 if bad else 0
