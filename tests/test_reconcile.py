@@ -4,6 +4,7 @@ within-std counts checked by hand, the nearest variant."""
 import pandas as pd
 import pytest
 
+from bsrbench.errors import InputError
 from bsrbench.reporting import reconcile as rc
 
 NN1 = "bsrbench.models.reference:NearestNeighbourRegressor"
@@ -168,3 +169,23 @@ def test_pm_under_the_nearest_variant_is_tested_against_each_baseline_by_hand():
     assert s["counts"] == {"1-NN": [0, 1, 0], "RVM": [1, 0, 0]}
     text = rc.pm_markdown([s], variant)
     assert "| PM | 1 | 5.00 / nan | 0.83 (1/1) | 1.010, 1.040 | 0/1/0 | 1/0/0 |" in text
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (lambda d: d.drop(columns="estimator"), r"lack columns \['estimator'\]"),
+        (lambda d: d.drop(columns="paper_activity"), r"lack columns \['paper_activity'\]"),
+        (
+            lambda d: d.assign(error_unwrapped=[float("nan")] + [1.0] * (len(d) - 1)),
+            "'error_unwrapped' is empty",
+        ),
+        (
+            lambda d: d.assign(activity="golf_half"),
+            "data set hsc/golf_half .* not in the study's configuration",
+        ),
+    ],
+)
+def test_rows_it_cannot_reconcile_are_refused_in_one_line(change, words):
+    with pytest.raises(InputError, match=words):
+        rc.cells(change(_table()), CONFIG, DATASETS, PAPER)

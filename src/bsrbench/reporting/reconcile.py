@@ -54,11 +54,50 @@ def method_setting(entry):
     return "tuned"
 
 
+#: The columns a reconciliation needs of every row.
+NEEDED = [
+    "protocol",
+    "source",
+    "activity",
+    "paper_activity",
+    "method",
+    "estimator",
+    "n_train",
+    "seed",
+]
+
+
+def _checked(df, datasets):
+    """InputError naming the column, or the data set, that the reconciliation cannot do without: a missing column,
+    an empty or non-finite error, a data set the study's configuration does not define."""
+    missing = [c for c in NEEDED + list(METRICS.values()) if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"the results lack columns {missing}; expected rows of today's code (rerun the study)"
+        )
+    for c in ("estimator", "paper_activity"):
+        if df[c].isna().any():
+            raise InputError(f"the results have rows without {c!r}; expected it on every row")
+    for c in METRICS.values():
+        v = pd.to_numeric(df[c], errors="coerce")
+        if not np.isfinite(v).all():
+            raise InputError(
+                f"the results have rows whose {c!r} is empty or not finite; expected a number"
+            )
+    for s, a in df[["source", "activity"]].drop_duplicates().itertuples(index=False):
+        if a not in (datasets.get(s) or {}):
+            raise InputError(
+                f"data set {s}/{a} of the results is not in the study's configuration; expected the "
+                "configuration files the table's provenance names"
+            )
+
+
 def cells(df, config, datasets, paper):
     """One row per variant, method (its paper name, or 1-NN) and cell (paper activity, N) of the results ``df``:
     our mean and std over the seeds, the paper's mean and std, ratio and ``within`` (|ours - paper| <= the paper's
     std). ``config``: the study's configuration (methods), ``datasets``: {source: {activity: entry}} of the study,
-    ``paper``: :func:`.tables.read_paper_tables`."""
+    ``paper``: :func:`.tables.read_paper_tables`. InputError for rows it cannot reconcile (:func:`_checked`)."""
+    _checked(df, datasets)
     names = paper_names(df)
     methods = config.get("methods") or {}
     kinds = {}
