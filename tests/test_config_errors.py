@@ -325,6 +325,34 @@ def test_a_dry_run_refuses_an_estimator_that_is_not_an_estimator_class_and_calls
     assert not marker.exists()
 
 
+def test_a_dry_run_refuses_a_module_planted_in_the_working_directory(work, tmp_path):
+    """Snakemake runs in the project folder, which is on Python's path: a ``.py`` file planted there and named by
+    a configuration is refused in one line, and its top-level code never runs."""
+    marker = tmp_path / "marker"
+    planted = work / "planted_estimator.py"
+    planted.write_text(
+        f"open({str(marker)!r}, 'w').close()\n"
+        "class Planted:\n    def fit(self, X, Y):\n        return self\n"
+        "    def predict(self, X):\n        return X\n    def get_params(self, deep=True):\n        return {}\n"
+    )
+    config = tmp_path / "planted.yaml"
+    config.write_text(
+        "run: [EVIL]\nmethods:\n  EVIL:\n    estimator: 'planted_estimator:Planted'\n    params: {}\n    grid: null\n"
+    )
+    try:
+        rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--configfile", str(config)], work)
+    finally:
+        planted.unlink()
+    assert rc == 1, out[-3000:]
+    assert "Traceback" not in out and 'File "' not in out, out[-3000:]
+    lines = [x for x in out.splitlines() if x.startswith("config key 'methods.EVIL.estimator'")]
+    assert len(lines) == 1 and lines[0].startswith(
+        "config key 'methods.EVIL.estimator': estimator 'planted_estimator:Planted': module 'planted_estimator' "
+        f"is found in {work}, which no installation put on the path"
+    ), out
+    assert not marker.exists()
+
+
 def test_bin_study_refuses_a_configfile_that_asks_snakemake_to_evaluate_python(tmp_path):
     """Snakemake reads --configfile files with YTE, which evaluates the expressions of a file that sets
     __use_yte__: bin/study refuses such a file before Snakemake reads it."""

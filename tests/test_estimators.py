@@ -27,14 +27,65 @@ def test_estimator_loading_errors_name_the_path_and_parameter():
 
 # ------------------------------------------------------------- the resolver runs no code it did not mean to
 def _package(tmp_path, monkeypatch, name, init="", modules=None):
-    """A package ``name`` on ``sys.path`` whose ``__init__`` is ``init`` and with the modules ``{name: source}``."""
+    """A package ``name`` in a directory on PYTHONPATH (and ``sys.path``) whose ``__init__`` is ``init`` and with
+    the modules ``{name: source}``: a researcher's own package."""
     pkg = tmp_path / name
     pkg.mkdir()
     (pkg / "__init__.py").write_text(init)
     for mod, src in (modules or {}).items():
         (pkg / f"{mod}.py").write_text(src)
     monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
     return pkg
+
+
+ESTIMATOR_SOURCE = (
+    "open({marker!r}, 'w').close()\n"
+    "class Planted:\n"
+    "    def fit(self, X, Y):\n        return self\n"
+    "    def predict(self, X):\n        return X\n"
+    "    def get_params(self, deep=True):\n        return {{}}\n"
+)
+
+
+def test_a_module_planted_in_the_working_directory_is_refused_and_never_runs(tmp_path, monkeypatch):
+    """Python puts the working directory (or a script's) on the path without anyone installing it: a ``.py`` file
+    there that a configuration names is refused before it is imported, naming the directory."""
+    marker = tmp_path / "marker"
+    (tmp_path / "planted_est.py").write_text(ESTIMATOR_SOURCE.format(marker=str(marker)))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delenv("PYTHONPATH", raising=False)
+    with pytest.raises(InputError) as err:
+        load_estimator_class("planted_est:Planted")
+    assert str(err.value).startswith(
+        f"estimator 'planted_est:Planted': module 'planted_est' is found in {tmp_path}, which no installation "
+        "put on the path"
+    ), err.value
+    assert not marker.exists()
+    # the same file in a directory the user puts on PYTHONPATH is their own code: accepted
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    assert load_estimator_class("planted_est:Planted").__name__ == "Planted"
+    assert marker.exists()
+
+
+@pytest.mark.parametrize(
+    "path", ["own_prog.__main__:Planted", "own_prog.__init__:Planted", "PIL.__main__:X"]
+)
+def test_a_packages_program_is_refused_and_never_runs(tmp_path, monkeypatch, path):
+    """A package's ``__main__`` is its program (``python -m``), which many run unguarded when imported."""
+    marker = tmp_path / "marker"
+    _package(
+        tmp_path,
+        monkeypatch,
+        "own_prog",
+        modules={"__main__": ESTIMATOR_SOURCE.format(marker=str(marker))},
+    )
+    with pytest.raises(InputError) as err:
+        load_estimator_class(path)
+    dunder = path.split(":")[0].split(".")[-1]
+    assert f"module name part {dunder!r} is a dunder module" in str(err.value), err.value
+    assert not marker.exists()
 
 
 @pytest.mark.parametrize(

@@ -4,17 +4,23 @@ grids.
 A path is data (a configuration value, a published row's column), so it is resolved in steps that run no code until
 the named thing is known to be an estimator class: :func:`parse_estimator_path` checks its form,
 :func:`locate_estimator` finds the module's source file through the import system's finders without importing
-anything (a module of Python's standard library is refused: it holds no regressor, and importing some of its
-modules has side effects), and :func:`load_estimator_class` imports that one module, takes the name from the
+anything (refused: a module of Python's standard library, which holds no regressor and some of whose modules act
+when imported; a ``__main__`` or other dunder module, a package's program; and a module found in a directory
+that no installation put on the path, such as the working directory, where a planted ``.py`` file would run),
+and :func:`load_estimator_class` imports that one module, takes the name from the
 module's own namespace (no module ``__getattr__``) and accepts it only if it is a class with ``fit``, ``predict``
 and ``get_params`` (a scikit-learn-style regressor). Only then do :func:`make_estimator` and the helpers below
 instantiate it. Classes are imported only when used, so a missing model module fails only the jobs that need it.
 """
 
 import importlib
+import importlib.machinery
 import inspect
+import os
 import re
+import site
 import sys
+import sysconfig
 from pathlib import Path
 
 from .errors import InputError
@@ -36,20 +42,81 @@ def parse_estimator_path(path):
 
 
 def _find_spec(name, search):
-    """The module spec of ``name`` from the import system's finders (``sys.meta_path``, as ``import`` asks them),
-    with ``search`` the parent package's ``__path__`` (None: top level). Finders read the file system; no module
-    code runs. A module imported already answers from ``sys.modules``."""
+    """``(spec, finder)`` of module ``name`` from the import system's finders (``sys.meta_path``, as ``import``
+    asks them), with ``search`` the parent package's ``__path__`` (None: top level); ``(None, None)`` if none has
+    it. Finders read the file system; no module code runs. A module imported already answers from
+    ``sys.modules`` (finder None)."""
     loaded = sys.modules.get(name)
     if loaded is not None:
-        return getattr(loaded, "__spec__", None)
+        return getattr(loaded, "__spec__", None), None
     for finder in sys.meta_path:
         find = getattr(finder, "find_spec", None)
         if find is None:
             continue
         spec = find(name, search)
         if spec is not None:
-            return spec
-    return None
+            return spec, finder
+    return None, None
+
+
+def _resolved(path):
+    try:
+        return Path(path).resolve()
+    except (OSError, RuntimeError):
+        return None
+
+
+def installed_roots():
+    """The directories a top-level estimator module may come from: the interpreter's site-packages (and the user's),
+    the directories their ``.pth`` files add (editable installs such as bsrbench's own ``src/``), the entries of
+    ``PYTHONPATH`` (the user's explicit choice) and the directory bsrbench itself was imported from. Not the
+    working directory or a script's directory, which Python puts on the path without anyone installing them."""
+    sites = [*site.getsitepackages(), site.getusersitepackages()]
+    sites += [sysconfig.get_path(k) for k in ("purelib", "platlib")]
+    roots = {Path(__file__).resolve().parents[1]}
+    for d in filter(None, sites):
+        base = _resolved(d)
+        if base is None or not base.is_dir():
+            continue
+        roots.add(base)
+        for pth in sorted(base.glob("*.pth")):
+            try:
+                lines = pth.read_text(errors="replace").splitlines()
+            except OSError:
+                continue
+            for line in lines:
+                line = line.strip()
+                if line and not line.startswith(("#", "import ", "import\t")):
+                    entry = _resolved(base / line)
+                    if entry is not None:
+                        roots.add(entry)
+    for entry in os.environ.get("PYTHONPATH", "").split(os.pathsep):
+        if entry and _resolved(entry) is not None:
+            roots.add(_resolved(entry))
+    return roots
+
+
+def _top_level_dirs(spec):
+    """The directories holding the top-level module or package of ``spec`` (several for a namespace package)."""
+    if spec.submodule_search_locations is not None:
+        return [Path(p).parent for p in spec.submodule_search_locations]
+    return [Path(spec.origin).parent] if spec.has_location and spec.origin else []
+
+
+def _check_installed(path, name, spec):
+    """InputError unless the top-level module ``name`` lies in :func:`installed_roots` (a path entry's module;
+    a meta-path finder other than the path finder was put there by an installed package and is trusted)."""
+    dirs = _top_level_dirs(spec)
+    roots = installed_roots()
+    outside = [d for d in dirs if _resolved(d) not in roots]
+    if dirs and not outside:
+        return
+    where = str(outside[0]) if outside else "nowhere on disk"
+    raise InputError(
+        f"estimator {path!r}: module {name!r} is found in {where}, which no installation put on the path (the "
+        f"working directory or a script's directory); expected {_EXPECTED} of an installed package, of a "
+        f"directory on PYTHONPATH or of bsrbench.models"
+    )
 
 
 def locate_estimator(path):
@@ -62,10 +129,18 @@ def locate_estimator(path):
             f"estimator {path!r}: module {parts[0]!r} is of Python's standard library, which has no estimator; "
             f"expected {_EXPECTED} of an installed package or of bsrbench.models"
         )
+    dunder = next((p for p in parts if p.startswith("__") and p.endswith("__")), None)
+    if dunder is not None:
+        raise InputError(
+            f"estimator {path!r}: module name part {dunder!r} is a dunder module (a package's __main__ is its "
+            f"program and runs when imported); expected {_EXPECTED}"
+        )
     search, spec = None, None
     for k in range(len(parts)):
         name = ".".join(parts[: k + 1])
-        spec = _find_spec(name, search)
+        spec, finder = _find_spec(name, search)
+        if k == 0 and spec is not None and finder in (None, importlib.machinery.PathFinder):
+            _check_installed(path, name, spec)
         if spec is None:
             where = (
                 "" if k == 0 else f" (package {'.'.join(parts[:k])!r} has no module {parts[k]!r})"
