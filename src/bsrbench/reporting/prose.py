@@ -88,6 +88,19 @@ class Book:
         return self._read("reconcile-pm.csv")
 
     @cached_property
+    def pmfair(self):
+        """``(cells, {PM name: summary})`` of PM with a fair budget beside the headline PM
+        (:func:`.budget.published_parts`)."""
+        from .budget import published_parts
+
+        c, summaries = published_parts(
+            self.path("paper-pmfair.csv"),
+            self.path("paper.csv"),
+            self.root / "resources" / "paper-tables.csv",
+        )
+        return c, {r["method"]: r for r in summaries}
+
+    @cached_property
     def part_rows(self):
         """{part: rows} of the parts of published tables (``reports/published/parts/*.csv``)."""
         from ..io import read_csv
@@ -911,6 +924,64 @@ def _(book):
 @claim("reconcile.blocked_nn")
 def _(book):
     return _reconcile_ratios(book, "blocked", "1-NN")
+
+
+# ----------------------------------------------------------------------------------------- paper-pmfair.csv
+def _fair(book):
+    """The fair-budget PM's summary (the PM of paper-pmfair.csv, not the headline PM)."""
+    from .reconcile import PM
+
+    (name,) = [n for n in book.pmfair[1] if n != PM]
+    return book.pmfair[1][name]
+
+
+@claim("paper_pmfair.error.PM")
+def _(book):
+    from .reconcile import PM
+
+    return fmt(book.pmfair[1][PM]["error"])
+
+
+@claim("paper_pmfair.error.fair")
+def _(book):
+    return fmt(_fair(book)["error"])
+
+
+@claim("paper_pmfair.vs_pm")
+def _(book):
+    c = book.pmfair[0]
+    return count((c["fair_vs_pm"] == "better").sum(), len(c))
+
+
+@claim("paper_pmfair.ratio")
+def _(book):
+    return fmt(float(np.median(_fair(book)["ratios"])))
+
+
+@claim("paper_pmfair.b1")
+def _(book):
+    c = book.pmfair[0]
+    return count(c["choice"].str.endswith(", b 1").sum(), len(c))
+
+
+@claim("paper_pmfair.beats_nn")
+def _(book):
+    from .reconcile import NN
+
+    s = _fair(book)
+    return count(s["counts"][NN][0], s["cells"])
+
+
+@claim("paper_pmfair.worse_sr")
+def _(book):
+    s = _fair(book)
+    return count(s["counts"]["SR"][2], s["cells"])
+
+
+@claim("paper_pmfair.converged")
+def _(book):
+    c = book.pmfair[0]
+    return count(c["converged"].sum(), c["splits"].sum())
 
 
 # ----------------------------------------------------------------------------------------- reconcile-pm.csv

@@ -484,6 +484,24 @@ def main(argv=None):
         help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
         "table's study, reconcile or reconcile-pm)",
     )
+    bu = sub.add_parser(
+        "budget",
+        help="PM with a fair budget beside the headline PM on the same splits, from a published table "
+        "(reports/published/paper-pmfair.csv) and the headline table",
+    )
+    bu.add_argument("table")
+    bu.add_argument(
+        "--beside",
+        default=str(_DEFAULT_PAPER.parents[1] / "reports" / "published" / "paper.csv"),
+        help="the headline table (its PM and baselines)",
+    )
+    bu.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables")
+    bu.add_argument(
+        "--update",
+        metavar="FILE",
+        help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
+        "table's study)",
+    )
     pr = sub.add_parser(
         "prose",
         help="the numbers of the README, docs/ and config comments marked <!-- n:CLAIM -->: list those that "
@@ -501,14 +519,19 @@ def main(argv=None):
             from . import prose
 
             return prose.run_command(args)
-        if args.cmd == "reconcile":
-            text = reconcile_markdown(args.table, args.paper)
+        if args.cmd in ("reconcile", "budget"):
+            if args.cmd == "budget":
+                from .budget import published_markdown
+
+                text = published_markdown(args.table, args.beside, args.paper)
+            else:
+                text = reconcile_markdown(args.table, args.paper)
             if args.update:
                 block = freshness.study_name(args.table)
                 headline.update_blocks(
                     args.update,
                     {block: text},
-                    required={block: f"the reconciliation table of {args.table}"},
+                    required={block: f"the {args.cmd} table of {args.table}"},
                 )
             else:
                 print(text)

@@ -291,8 +291,8 @@ def pm_summary(rows, pm_names, paper, metric="error"):
     return out
 
 
-def pm_markdown(summaries, variant):
-    """The markdown of :func:`pm_summary` with its legend."""
+def pm_markdown(summaries, variant, legend=True):
+    """The markdown of :func:`pm_summary`, with its legend unless ``legend`` is false."""
     if not summaries:
         return ""
     others = list(summaries[0]["counts"])
@@ -311,6 +311,8 @@ def pm_markdown(summaries, variant):
         lines.append(
             f"| {r['method']} | {r['cells']} | {err} | {ratio} | {rh} | " + " | ".join(cols) + " |"
         )
+    if not legend:
+        return "\n".join(lines)
     lines += [
         "",
         f"PM under the nearest variant (splits {variant['splits']}, {variant['frames']}): the median over the "

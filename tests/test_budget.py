@@ -1,0 +1,118 @@
+"""PM with a fair budget beside the headline PM (bsrbench.reporting.budget): per-cell means, R-hat and the paired
+comparison checked by hand; the generated tables of docs/results.md equal what the published tables give."""
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from bsrbench.errors import InputError
+from bsrbench.reporting import budget, headline, reconcile
+from bsrbench.reporting.published import reconcile_markdown
+
+ROOT = Path(__file__).resolve().parents[1]
+PUBLISHED = ROOT / "reports" / "published"
+PAPER = pd.DataFrame(
+    [("I", "Golf", n, "PM", 10.0, 2.0) for n in (30, 60)],
+    columns=["table", "activity", "n_train", "method", "mean_deg", "std_deg"],
+).assign(key="golf")
+
+
+def _rows(name, n, errors, **extra):
+    return [
+        dict(
+            source="hsc",
+            activity="golf",
+            paper_activity="Golf",
+            n_train=n,
+            seed=s,
+            error=e,
+            name=name,
+        )
+        | {k: v[s] if isinstance(v, list) else v for k, v in extra.items()}
+        for s, e in enumerate(errors)
+    ]
+
+
+def test_cells_are_means_r_hats_and_holm_adjusted_paired_tests_by_hand():
+    fair30, pm30 = [5.0, 5.2, 4.9, 5.1, 5.0], [7.0, 7.3, 6.8, 7.1, 7.2]
+    fair60, pm60 = [6.0, 6.4, 5.8, 6.1, 6.2], [6.1, 6.2, 6.0, 6.3, 5.9]
+    rows = pd.DataFrame(
+        _rows("PM", 30, pm30)
+        + _rows("PM", 60, pm60)
+        + _rows("1-NN", 30, [6.0] * 5)
+        + _rows("1-NN", 60, [6.5] * 5)
+        + _rows("SR", 30, [5.5] * 5)
+        + _rows("TGP", 30, [5.4, 5.6, 5.4, 5.6, 5.5])
+        + _rows("SR", 60, [5.0] * 5)
+        + _rows(
+            "PM (fair budget)",
+            30,
+            fair30,
+            r_hat_test_error=[1.0, 1.02, 1.005, 1.3, 1.01],
+            train_error=1.0,
+            params='{"n_atoms": 64, "n_neighbors": 5, "b_xy": 1e-06}',
+        )
+        + _rows(
+            "PM (fair budget)",
+            60,
+            fair60,
+            r_hat_test_error=1.0,
+            train_error=2.0,
+            params='{"n_atoms": 128, "n_neighbors": 3, "b_xy": 1.0}',
+        )
+    )
+    c = budget.cells(rows, ["PM", "PM (fair budget)"], PAPER).set_index("n_train")
+    assert c.loc[30, "fair"] == pytest.approx(np.mean(fair30))
+    assert c.loc[30, "pm"] == pytest.approx(np.mean(pm30))
+    assert c.loc[30, "best"] == "TGP" and c.loc[30, "best_error"] == pytest.approx(5.5)
+    assert c.loc[60, "best"] == "SR" and c.loc[60, "nn"] == pytest.approx(6.5)
+    assert c.loc[30, "r_hat_median"] == pytest.approx(1.01) and c.loc[30, "r_hat_max"] == 1.3
+    assert c.loc[30, "converged"] == 3 and c.loc[60, "converged"] == 5
+    assert c.loc[30, "choice"] == "K 64, j 5, b 1e-06" and c.loc[60, "choice"] == "K 128, j 3, b 1"
+    assert c.loc[30, "paper_pm"] == 10.0
+    # by hand: paired t over the seeds per cell, Holm over the two cells
+    p30, p60 = stats.ttest_rel(fair30, pm30).pvalue, stats.ttest_rel(fair60, pm60).pvalue
+    lo, hi = sorted([p30, p60])
+    holm = {lo: 2 * lo, hi: max(2 * lo, hi)}
+    assert c.loc[30, "p_holm"] == pytest.approx(holm[p30])
+    assert c.loc[60, "p_holm"] == pytest.approx(holm[p60])
+    assert holm[p30] < 0.05 <= holm[p60]
+    assert (c.loc[30, "fair_vs_pm"], c.loc[60, "fair_vs_pm"]) == ("better", "tied")
+    text = budget.markdown(c.reset_index(), [])
+    assert "| golf N = 30 | 7.08 | 5.04 | 1.00 | 10.00 | 6.00 | 5.50 (TGP) | 1.010, 1.300 |" in text
+    assert "8 of 10 splits" in text and "better 1, tied 1, worse 0" in text
+
+
+def test_a_table_pair_without_both_pms_is_refused():
+    rows = pd.DataFrame(_rows("PM", 30, [1.0, 2.0]))
+    with pytest.raises(InputError, match="expected the headline PM and one fair-budget PM"):
+        budget.cells(rows, ["PM"], PAPER)
+
+
+def _block_is_fresh(tmp_path, block, text):
+    """The block ``block`` of docs/results.md, regenerated from ``text``, leaves the file unchanged."""
+    copy = tmp_path / "results.md"
+    shutil.copy(ROOT / "docs" / "results.md", copy)
+    headline.update_blocks(copy, {block: text}, required={block: block})
+    assert copy.read_text() == (ROOT / "docs" / "results.md").read_text(), (
+        f"docs/results.md's <!-- {block} --> block differs from the published table's; run "
+        f"python -m bsrbench.reporting.published ... --update docs/results.md"
+    )
+
+
+@pytest.mark.parametrize("study", ["reconcile", "reconcile-pm"])
+def test_the_reconciliation_tables_of_the_docs_are_the_published_tables(tmp_path, study):
+    _block_is_fresh(tmp_path, study, reconcile_markdown(PUBLISHED / f"{study}.csv"))
+
+
+def test_the_fair_budget_table_of_the_docs_is_the_published_table(tmp_path):
+    table = PUBLISHED / "paper-pmfair.csv"
+    text = budget.published_markdown(
+        table, PUBLISHED / "paper.csv", ROOT / "resources" / "paper-tables.csv"
+    )
+    _block_is_fresh(tmp_path, "paper-pmfair", text)
+    assert reconcile.PM in text
