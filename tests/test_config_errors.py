@@ -402,3 +402,18 @@ def test_seed_start_beyond_32_bit_seeds_is_refused(work):
         in out
     )
     assert "Traceback" not in out
+
+
+def test_a_mat_data_set_asking_for_rows_its_file_lacks_is_refused_by_the_dry_run(work):
+    """x4921.mat (acrobatics) has 600 rows: from first_frame 1, 600 frames need row 600. This passed the dry run
+    and failed only in the features job."""
+    config = "datasets={hsc: {acrobatics: {first_frame: 1}}}"
+    rc, out = run([SNAKEMAKE, "-n", "--cores", "2", "--config", config], work)
+    assert rc == 1, out[-3000:]
+    assert_one_line(
+        out,
+        "config datasets.hsc.acrobatics (config/datasets.yaml): first_frame 1, frame_step 1 and n_frames 600 "
+        "need row 600, but resources/paper-features/x4921.mat has 600 rows (X), 599 of them from first_frame "
+        "every frame_step; expected first_frame + (n_frames - 1) x frame_step below 600 (lower n_frames, "
+        "first_frame or frame_step, or set fewer_frames: use_all with frame_selection: first)",
+    )

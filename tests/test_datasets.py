@@ -448,3 +448,45 @@ def test_mat_rows_from_first_frame_every_frame_step(tmp_path):
     assert np.array_equal(half.frames, np.arange(0, 70, 2)) and np.array_equal(half.Y, Y[::2, 3:])
     with pytest.raises(InputError, match="has 35 usable frames but n_frames = 60"):
         load_feature_mat(path, n_frames=60, drop_y_columns=3, frame_step=2)
+
+
+def test_the_configuration_check_counts_a_mat_files_rows_before_any_job(tmp_path):
+    """A data set whose first_frame + (n_frames - 1) x frame_step is no row of its .mat file passed the dry run and
+    failed only in the features job: the check now reads the file's rows from its header and refuses it, naming
+    the data set, its frame settings, the file and its rows; what fits, or what use_all keeps, passes."""
+    from bsrbench.config import check_mat_rows
+
+    path = tmp_path / "m.mat"
+    scipy.io.savemat(path, {"X": np.ones((70, 4)), "Y": np.zeros((70, 6))})
+    entry = dict(
+        source="hsc",
+        activity="late",
+        format="mat",
+        files=[str(path)],
+        x_key="X",
+        first_frame=10,
+        frame_step=1,
+        n_frames=60,
+        frame_selection="first",
+        fewer_frames="error",
+    )
+    check_mat_rows(entry)  # rows 10 .. 69: the last row of the file
+    where = "config datasets.hsc.late (config/datasets.yaml)"
+    with pytest.raises(InputError) as exc:
+        check_mat_rows({**entry, "first_frame": 11})
+    assert str(exc.value) == (
+        f"{where}: first_frame 11, frame_step 1 and n_frames 60 need row 70, but {path} has 70 rows (X), 59 of "
+        "them from first_frame every frame_step; expected first_frame + (n_frames - 1) x frame_step below 70 "
+        "(lower n_frames, first_frame or frame_step, or set fewer_frames: use_all with frame_selection: first)"
+    )
+    with pytest.raises(
+        InputError, match=r"frame_step 2 and n_frames 60 need row 128, but .* has 70 rows"
+    ):
+        check_mat_rows({**entry, "frame_step": 2, "frame_selection": "spread"})
+    check_mat_rows({**entry, "frame_step": 2, "fewer_frames": "use_all"})  # keeps the 30 there are
+    with pytest.raises(InputError) as exc:
+        check_mat_rows({**entry, "first_frame": 70, "fewer_frames": "use_all"})
+    assert str(exc.value) == (
+        f"{where}: first_frame 70 is not a row of {path}, which has 70 rows (X); expected first_frame below 70"
+    )
+    check_mat_rows({**entry, "files": [str(tmp_path / "absent.mat")]})  # left to the features job

@@ -692,3 +692,145 @@ def test_a_deeply_nested_provenance_is_one_line(study, capsys):
         assert _one_error_line(capsys).startswith(
             f"error: {freshness.provenance_path(study)}: cannot read the provenance (JSON nested too deeply"
         )
+
+
+# ------------------------------------------------------------------- break test D6-D8: header only, columns, types
+@pytest.mark.parametrize("command", ["check", "verify", "restamp"])
+def test_a_table_with_a_header_but_no_rows_is_refused_in_one_line(study, capsys, command):
+    """A table emptied to its header passed check and verify silently (merge and shift already refused it)."""
+    pd.read_csv(study).head(0).to_csv(study, index=False)
+    assert (
+        len(study.read_text().splitlines()) == 1
+    )  # the header, still with its provenance beside it
+    assert main([command, str(study)]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {study}: has no rows (only a header); expected a published table of result rows"
+    )
+
+
+@pytest.mark.parametrize(
+    "values, words",
+    [
+        (
+            {"n_chains": 3},
+            "line 2: column 'n_chains' is 3; expected 1, the chains of method NN1 in the configuration",
+        ),
+        (
+            {"paper_activity": "Run"},
+            "line 2: column 'paper_activity' is 'Run'; expected 'Golf', the paper_activity of data set "
+            "hsc/golf in the configuration (datasets.hsc.golf.paper_activity)",
+        ),
+        (
+            {"params": '{"n_neighbors": 1.0}'},
+            "line 2: column 'params': n_neighbors: 1.0 is of type float; expected 1 of type int, what method "
+            "NN1 is configured with (methods.NN1.params and grid)",
+        ),
+        (
+            {"params": '{"n_neighbors": true}'},
+            "line 2: column 'params': n_neighbors: True is of type bool; expected 1 of type int, what method "
+            "NN1 is configured with (methods.NN1.params and grid)",
+        ),
+    ],
+    ids=["n_chains", "paper_activity", "params-float-for-int", "params-bool-for-int"],
+)
+def test_verify_checks_chains_paper_activity_and_the_type_of_params(study, capsys, values, words):
+    _edit_row(study, 2, **values)
+    assert main(["verify", str(study)]) == 2
+    assert _one_error_line(capsys) == f"error: {study} {words}"
+
+
+def test_the_row_check_skips_a_column_the_row_lacks_and_compares_one_it_has(study):
+    """Rows written before a column existed lack it: not compared. A column present is compared, an empty
+    ``n_chains`` cell being one chain (what a single-chain fit writes)."""
+    config = freshness.study_config(["config/ci.yaml"])
+    datasets = freshness._study_datasets(["config/ci.yaml"])
+    assert datasets["hsc"]["golf"]["paper_activity"] == "Golf"
+    row = pd.read_csv(study).iloc[0].to_dict()  # NN1: its rows have no n_chains column
+    assert "n_chains" not in row
+    config["methods"]["NN1"]["chains"] = 2
+    assert freshness.row_settings(row, config, "T line 2", datasets)["n_chains"] == 1
+    for cell, ok in [(2.0, True), (float("nan"), False), (4.0, False)]:
+        if ok:
+            out = freshness.row_settings({**row, "n_chains": cell}, config, "T line 2", datasets)
+            assert out["n_chains"] == 2
+            continue
+        with pytest.raises(freshness.InputError) as exc:
+            freshness.row_settings({**row, "n_chains": cell}, config, "T line 2", datasets)
+        shown = "empty (one chain)" if cell != cell else int(cell)
+        assert str(exc.value) == (
+            f"T line 2: column 'n_chains' is {shown}; expected 2, the chains of method NN1 in the configuration"
+        )
+    config["methods"]["NN1"]["chains"] = 1
+    for label, ok in [("Golf", True), (float("nan"), True), ("Walk", False)]:
+        edited = {**row, "paper_activity": label}
+        if ok:
+            out = freshness.row_settings(edited, config, "T line 2", datasets)
+            assert out["spec"].paper_activity == (label if isinstance(label, str) else "")
+            continue
+        with pytest.raises(freshness.InputError) as exc:
+            freshness.row_settings(edited, config, "T line 2", datasets)
+        assert str(exc.value).startswith(
+            "T line 2: column 'paper_activity' is 'Walk'; expected 'Golf'"
+        )
+    del row["paper_activity"]
+    assert freshness.row_settings(row, config, "T line 2", datasets)["spec"].paper_activity == ""
+
+
+def test_a_grid_value_of_another_type_is_refused_naming_the_grid():
+    config = freshness.study_config(["config/ci.yaml"])
+    row = {
+        "method": "KNN",
+        "estimator": config["methods"]["KNN"]["estimator"],
+        "source": "hsc",
+        "activity": "golf",
+        "params": json.dumps({"n_neighbors": 5.0, "weights": "distance"}),
+    }
+    with pytest.raises(freshness.InputError) as exc:
+        freshness.row_settings(row, config, "T line 9")
+    assert str(exc.value) == (
+        "T line 9: column 'params': n_neighbors: 5.0 is of type float; expected the grid's [3, 5] of type int, "
+        "what method KNN is configured with (methods.KNN.params and grid)"
+    )
+
+
+@pytest.mark.parametrize("command", ["check", "verify", "restamp", "shift"])
+def test_a_table_that_is_a_link_to_a_file_of_another_kind_is_one_line(tmp_path, capsys, command):
+    """A link to /etc/passwd: the CSV parser's message ended in a newline, so the error took two lines."""
+    target = tmp_path / "passwd"
+    target.write_text(
+        "root:x:0:0:root:/root:/bin/bash\nbin:x:1:1:bin:/bin:/sbin/nologin\n"
+        "u:x:1000:1000:A User,Room 1,,:/home/u:/bin/sh\n"
+    )
+    table = tmp_path / "paper.csv"
+    table.symlink_to(target)
+    args = [str(table)] * (2 if command == "shift" else 1)
+    assert main([command, *args]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {table}: cannot read the published table (Error tokenizing data. C error: Expected 1 fields in "
+        "line 3, saw 4); expected a CSV table of result rows"
+    )
+
+
+@pytest.mark.parametrize(
+    "datasets, words",
+    [
+        (
+            "datasets: [hsc]\n",
+            "key 'datasets' is a list; expected a mapping {source: {activity: entry}}",
+        ),
+        (
+            "datasets: {hsc: [golf]}\n",
+            "key 'datasets.hsc' is a list; expected a mapping {activity: entry}",
+        ),
+    ],
+)
+def test_verify_names_a_referenced_datasets_section_of_the_wrong_shape(
+    study, tmp_path, capsys, monkeypatch, datasets, words
+):
+    """The rows' paper_activity is compared with the study's data sets: a configuration file whose ``datasets``
+    has another shape is one line naming it, not an AttributeError."""
+    text = (ROOT.parent / "config" / "ci.yaml").read_text() + datasets
+    folder = _config_folder(tmp_path, monkeypatch, text)
+    _use_configfiles(study, ["config/evil.yaml"])
+    assert main(["verify", str(study)]) == 2
+    assert _one_error_line(capsys) == f"error: {folder / 'evil.yaml'}: {words}"

@@ -620,3 +620,30 @@ def test_a_killed_client_still_kills_its_worker_after_the_acknowledgement(server
     client.send_signal(signal.SIGKILL)
     client.wait()
     _wait_gone(worker, timeout=10)
+
+
+def test_a_request_whose_cwd_does_not_exist_gets_one_line_and_the_server_serves_on(
+    server_socket, tmp_path
+):
+    """A ``cwd`` naming no directory failed in the worker's chdir: its reply was a Python traceback, which also
+    went into the server's log and kept it as the record of a server failure. Now it is refused in one line, no
+    job runs, the server serves on and its log is removed at shutdown like an empty one."""
+    server_pid = _up(server_socket, tmp_path)
+    output = tmp_path / "ran.txt"
+    for cwd, what in [
+        (tmp_path / "gone", "does not exist"),
+        (tmp_path / "f", "is not a directory"),
+    ]:
+        if what == "is not a directory":
+            cwd.write_text("")
+        request = dict(_request(tmp_path, output), cwd=str(cwd))
+        reply = _ask(server_socket, _frame(request))
+        assert reply == {
+            "status": "error",
+            "detail": f"refused a request: field 'cwd' is {str(cwd)!r}, which {what}; expected an existing "
+            "directory",
+        }
+    assert not output.exists()
+    _serves_on(server_socket, server_pid, tmp_path)
+    assert jobserver.shutdown(server_socket) is True
+    assert _server_files(server_socket) == []

@@ -672,6 +672,39 @@ def check_data_files(entry):
             raise InputError(f"{where}: {exc}") from None
 
 
+def check_mat_rows(entry):
+    """Check, before any job runs, that the .mat file of a data set of format mat has the rows its frames ask for:
+    ``first_frame + (n_frames - 1) * frame_step`` must be a row of the file (unless ``fewer_frames: use_all`` with
+    ``frame_selection: first``, which keeps what there is, and at least ``first_frame`` is). The rows are read from
+    the file's header (:func:`bsrbench.datasets.count_mat_rows`, scipy's ``whosmat``: no data is loaded); a file
+    that is missing or whose header cannot be read is left to the features job. Raises InputError naming the
+    data-set key, its frame settings, the file and its rows."""
+    from .datasets import count_mat_rows
+
+    if entry["format"] in MOTION_FORMATS or not entry["files"]:
+        return
+    path, x_key = entry["files"][0], entry["x_key"]
+    rows = count_mat_rows(path, x_key) if Path(path).is_file() else None
+    if rows is None:
+        return
+    where = f"config datasets.{entry['source']}.{entry['activity']} (config/datasets.yaml)"
+    first, step, n = int(entry["first_frame"]), int(entry["frame_step"]), int(entry["n_frames"])
+    usable = len(range(first, rows, step))
+    if usable == 0:
+        raise InputError(
+            f"{where}: first_frame {first} is not a row of {path}, which has {rows} rows ({x_key}); expected "
+            f"first_frame below {rows}"
+        )
+    keeps_fewer = entry["fewer_frames"] == "use_all" and entry["frame_selection"] == "first"
+    if usable < n and not keeps_fewer:
+        raise InputError(
+            f"{where}: first_frame {first}, frame_step {step} and n_frames {n} need row "
+            f"{first + (n - 1) * step}, but {path} has {rows} rows ({x_key}), {usable} of them from first_frame "
+            f"every frame_step; expected first_frame + (n_frames - 1) x frame_step below {rows} (lower "
+            "n_frames, first_frame or frame_step, or set fewer_frames: use_all with frame_selection: first)"
+        )
+
+
 def check_codebook_files(codebook):
     """Check that the codebook trials (``features.codebook``), which the motion-capture features are encoded
     over, are here and pass their checksums. Raises InputError naming the key, the file and what was expected."""
@@ -786,6 +819,7 @@ def _check_study(config, datasets, cwd):
                 )
             if d["enabled"]:
                 check_data_files(d)
+            check_mat_rows(d)
             frames[(source, a)] = data_frames(d)
     pairs = [(s, a) for s, acts in config["study_activities"].items() for a in acts]
     if any(datasets[p]["enabled"] and datasets[p]["format"] in MOTION_FORMATS for p in pairs):

@@ -1104,22 +1104,32 @@ def _worker(request, conn, result_w, inherited):
     status, detail = "ok", None
     try:
         os.chdir(request["cwd"])
-        job = request["job"]
-        log = job.get("log") or []
-        if log:
-            mode = os.O_APPEND if job.get("log_append") else os.O_TRUNC
-            fd = os.open(log[0], os.O_WRONLY | os.O_CREAT | mode, 0o644)
-            os.dup2(fd, 1)
-            os.dup2(fd, 2)
-            os.close(fd)
-        sys.stdout = os.fdopen(1, "w", buffering=1, closefd=False)
-        sys.stderr = os.fdopen(2, "w", buffering=1, closefd=False)
-        _limit_threads(job.get("threads", 1))
-        job_function(request["target"])(job)
-    except BaseException:
-        detail = traceback.format_exc()
+    except OSError as exc:
+        # gone since the server's check (_check_cwd), or not ours to enter: one line to the client, and nothing
+        # into the server's log (its stderr, still ours here), which a traceback would keep as a server failure
         status = "error"
-        print(detail, file=sys.stderr)
+        detail = (
+            f"refused a request: field 'cwd' is {_shown_path(request['cwd'])}, which cannot be entered "
+            f"({exc.strerror or exc}); expected an existing directory"
+        )
+    else:
+        try:
+            job = request["job"]
+            log = job.get("log") or []
+            if log:
+                mode = os.O_APPEND if job.get("log_append") else os.O_TRUNC
+                fd = os.open(log[0], os.O_WRONLY | os.O_CREAT | mode, 0o644)
+                os.dup2(fd, 1)
+                os.dup2(fd, 2)
+                os.close(fd)
+            sys.stdout = os.fdopen(1, "w", buffering=1, closefd=False)
+            sys.stderr = os.fdopen(2, "w", buffering=1, closefd=False)
+            _limit_threads(job.get("threads", 1))
+            job_function(request["target"])(job)
+        except BaseException:
+            detail = traceback.format_exc()
+            status = "error"
+            print(detail, file=sys.stderr)
     try:
         sys.stdout.flush()
         sys.stderr.flush()
@@ -1348,6 +1358,23 @@ def _check_request(request):
     return request
 
 
+def _shown_path(path):
+    """``path`` for a one-line message: its repr (escapes a newline), cut at 300 characters."""
+    text = repr(path)
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def _check_cwd(cwd):
+    """``cwd`` (a request's working directory, an absolute path) if it is an existing directory; ProtocolError
+    (one line) if not: the worker changes into it before anything else, and a failure there was a traceback."""
+    if not os.path.isdir(cwd):
+        what = "is not a directory" if os.path.lexists(cwd) else "does not exist"
+        raise ProtocolError(
+            f"field 'cwd' is {_shown_path(cwd)}, which {what}; expected an existing directory"
+        )
+    return cwd
+
+
 def _check_job(job):
     """``job`` (a request's job spec) if its fields are those of :data:`_JOB_FIELDS`, each of its type, ``threads``
     from 1 to :data:`_MAX_THREADS`, ``log`` at most 8 paths, every string in it at most :data:`_MAX_STRING`
@@ -1473,6 +1500,7 @@ def serve(path, idle=IDLE_SECONDS, preload=(), request_timeout=None):
         try:
             check_target(request["target"])
             _check_job(request["job"])
+            _check_cwd(request["cwd"])
         except (JobRefused, ProtocolError) as exc:
             return answer(client, _reply("error", f"refused a request: {exc}"))
         clients.remove(client)

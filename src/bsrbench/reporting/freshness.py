@@ -192,10 +192,25 @@ def read_table(table):
     try:
         df = pd.read_csv(table)
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
-        raise DataFileError(table, f"cannot read the published table ({exc})") from None
+        # the parser's message ends in a newline (e.g. a link to /etc/passwd): one line
+        why = " ".join(str(exc).split())
+        raise DataFileError(
+            table, f"cannot read the published table ({why}); expected a CSV table of result rows"
+        ) from None
     missing = [c for c in KEY_COLUMNS + ["error"] if c not in df.columns]
     if missing:
         raise DataFileError(table, f"missing columns {missing}; expected a table of result rows")
+    return df
+
+
+def _has_rows(table, df):
+    """``df`` (the rows of the published table ``table``); DataFileError naming the table when it has a header but
+    no rows: there is nothing to check or rerun, and a table emptied by mistake must not pass as fresh."""
+    if not len(df):
+        raise DataFileError(
+            table,
+            "has no rows (only a header); expected a published table of result rows",
+        )
     return df
 
 
@@ -253,7 +268,8 @@ def check_table(table, *, digests=None):
     or one line for the whole table (no fingerprints, historical); DataFileError naming an unreadable table. ``digests``: :func:`today`'s map if
     already computed."""
     name = str(table)
-    df = read_table(table)  # DataFileError naming the table: bad input, not a stale table
+    # DataFileError naming the table: bad input, not a stale table
+    df = _has_rows(table, read_table(table))
     prov = read_provenance(table, required=True)
     if prov.get("historical"):
         return [f"{name}: historical: {prov['historical']}"], False
@@ -331,22 +347,33 @@ _MAX_CHAINS = 1024
 
 def _same(a, b):
     """Whether a configured value ``a`` and a row's JSON value ``b`` are the same setting (YAML 1.1 leaves ``1e-3``
-    a string, which the configuration check reads as the number)."""
+    a string, which the configuration check reads as the number). A float is not an int (``1.0`` for a configured
+    ``1``: scikit-learn's validation refuses a float count), nor a bool an int."""
     if isinstance(a, bool) or isinstance(b, bool):
         return a is b
+    if isinstance(a, int) and isinstance(b, float):
+        return False
+    return _equal_value(a, b)
+
+
+def _equal_value(a, b):
+    """Whether ``a`` and ``b`` are equal as values, whatever their types (``1 == 1.0 == True``)."""
     if isinstance(a, str) and not isinstance(b, str):
         with contextlib.suppress(ValueError):
             a = float(a)
     return a == b
 
 
-def row_settings(row, config, where):
+def row_settings(row, config, where, datasets=None):
     """The checked settings of a published ``row`` (a dict of a table's row) for a rerun: ``{spec, estimator, params,
     n_chains, conformal, cv}``, the estimator and settings from the study's ``config`` (:func:`study_config`), the
     split's key and the CV's choice from the row. InputError naming ``where`` (table and line), the column, its
     value and what was expected when a column is missing, of another type or range, or when the row's
-    ``estimator`` or ``params`` are not what the configuration runs: a published row is data, and only the
-    configuration names code."""
+    ``estimator``, ``params`` (values and their types: a float is no int) or ``n_chains`` (``methods.<M>.chains``,
+    default 1; an empty cell is one chain) are not what the configuration runs: a published row is data, and only
+    the configuration names code. ``datasets``: the study's data sets (:func:`_study_datasets`), whose
+    ``paper_activity`` a row's must equal when both are given (an empty cell, as in rows of a data set without a
+    paper name, is not compared). A column a row lacks (rows written before it existed) is not compared."""
     from ..estimators import default_grid
     from ..splits import PROTOCOLS, JobSpec
 
@@ -404,6 +431,13 @@ def row_settings(row, config, where):
             if k in fixed
             else "no such key"
         )
+        configured = [*(grid.get(k) or []), *([fixed[k]] if k in fixed else [])]
+        types = sorted({type(g).__name__ for g in configured if _equal_value(g, v)})
+        if types:  # the value, but of another type (1.0 for 1, true for 1)
+            raise InputError(
+                f"{where}: column 'params': {k}: {v!r} is of type {type(v).__name__}; expected {allowed} of type "
+                f"{' or '.join(types)}, what method {method} is configured with (methods.{method}.params and grid)"
+            )
         raise InputError(
             f"{where}: column 'params': {k}: {v!r} is not what method {method} is configured with; expected "
             f"{allowed} (methods.{method}.params and grid)"
@@ -438,11 +472,31 @@ def row_settings(row, config, where):
     )
     if spec.method_seed != integer("method_seed", 0, 2**32 - 1):
         raise bad("method_seed", f"{spec.method_seed}, the seed today's code derives for {spec}")
+    if spec.paper_activity and datasets is not None:
+        entry = (datasets.get(spec.source) or {}).get(spec.activity)
+        if isinstance(entry, dict) and spec.paper_activity != (entry.get("paper_activity") or ""):
+            raise bad(
+                "paper_activity",
+                f"{entry.get('paper_activity') or ''!r}, the paper_activity of data set {spec.source}/"
+                f"{spec.activity} in the configuration (datasets.{spec.source}.{spec.activity}.paper_activity)",
+            )
+    n_chains = integer("n_chains", 1, _MAX_CHAINS, 1)
+    chains = m.get("chains", 1)
+    if isinstance(chains, bool) or not isinstance(chains, int) or chains < 1:
+        raise InputError(
+            f"config key 'methods.{method}.chains' is {chains!r}; expected a whole number of chains, at least 1"
+        )
+    if "n_chains" in row and n_chains != chains:
+        shown = n_chains if _value(row, "n_chains") is not None else "empty (one chain)"
+        raise InputError(
+            f"{where}: column 'n_chains' is {shown}; expected {chains}, the chains of method {method} in the "
+            "configuration"
+        )
     return {
         "spec": spec,
         "estimator": m["estimator"],
         "params": params,
-        "n_chains": integer("n_chains", 1, _MAX_CHAINS, 1),
+        "n_chains": n_chains,
         "conformal": None
         if level is None
         else {"level": level, "params": dict(m.get("cv_params") or {})},
@@ -574,17 +628,47 @@ def _known_methods(table, df, registry, files):
         )
 
 
+def _study_datasets(files):
+    """The data sets of a study, ``{source: {activity: entry}}``: ``config/datasets.yaml`` with the ``datasets`` of
+    ``files`` (:func:`study_config`'s files) merged over it entry by entry, as Snakemake merges the configuration
+    files (:func:`bsrbench.methods.study_datasets`, whose reading this checks first). DataFileError naming the
+    file and the key whose value is not a mapping; ``{}`` without a ``config/datasets.yaml``."""
+    from .. import methods
+    from ..safeload import read_yaml
+
+    folder = Path(methods.CONFIG)
+    paths = [folder / "datasets.yaml", *(repository_file(f, folder) for f in files)]
+    for path in paths:
+        data = read_yaml(path) if path.is_file() else None
+        sources = data.get("datasets") if isinstance(data, dict) else None
+        if not isinstance(sources, (dict, type(None))):
+            raise DataFileError(
+                path,
+                f"key 'datasets' is a {type(sources).__name__}; expected a mapping {{source: {{activity: entry}}}}",
+            )
+        for source, acts in (sources or {}).items():
+            if not isinstance(acts, (dict, type(None))):
+                raise DataFileError(
+                    path,
+                    f"key 'datasets.{source}' is a {type(acts).__name__}; expected a mapping {{activity: entry}}",
+                )
+    if not paths[0].is_file():
+        return {}
+    return methods.study_datasets(files, folder)
+
+
 def _checked_table(table, required_provenance):
     """``(rows, provenance, configfiles, config, registry)`` of a table to rerun rows of, every row checked against
     its study's configuration (:func:`row_settings`) before any is rerun."""
-    df = read_table(table)
+    df = _has_rows(table, read_table(table))
     prov = read_provenance(table, required=required_provenance)
     files = configfiles(table, prov)
     config = study_config(files)
     registry = study_registry(config, " + ".join(files))
     _known_methods(table, df, registry, files)
+    datasets = _study_datasets(files)
     for idx, row in df.iterrows():
-        row_settings(row.to_dict(), config, _line(table, idx))
+        row_settings(row.to_dict(), config, _line(table, idx), datasets=datasets)
     return df, prov, files, config, registry
 
 
