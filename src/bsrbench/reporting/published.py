@@ -416,6 +416,19 @@ def reconcile_markdown(table, paper=_DEFAULT_PAPER):
     return text
 
 
+def _block_table_arguments(parser, studies):
+    """The arguments of a command that turns a published table into a marked block of a document: the table,
+    the paper's tables and ``--update FILE`` (the block named after the table's study, e.g. ``studies``)."""
+    parser.add_argument("table")
+    parser.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables")
+    parser.add_argument(
+        "--update",
+        metavar="FILE",
+        help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
+        f"table's study, {studies})",
+    )
+
+
 #: The study whose published table the README's results tables show (``readme --update`` refuses any other).
 README_STUDY = "paper"
 
@@ -476,31 +489,17 @@ def main(argv=None):
         "reconcile",
         help="the protocol reconciliation table from a published table (reports/published/reconcile.csv)",
     )
-    rc.add_argument("table")
-    rc.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables")
-    rc.add_argument(
-        "--update",
-        metavar="FILE",
-        help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
-        "table's study, reconcile or reconcile-pm)",
-    )
+    _block_table_arguments(rc, "reconcile or reconcile-pm")
     bu = sub.add_parser(
         "budget",
         help="PM with a fair budget beside the headline PM on the same splits, from a published table "
         "(reports/published/paper-pmfair.csv) and the headline table",
     )
-    bu.add_argument("table")
+    _block_table_arguments(bu, "paper-pmfair")
     bu.add_argument(
         "--beside",
         default=str(_DEFAULT_PAPER.parents[1] / "reports" / "published" / "paper.csv"),
         help="the headline table (its PM and baselines)",
-    )
-    bu.add_argument("--paper", default=str(_DEFAULT_PAPER), help="the paper's tables")
-    bu.add_argument(
-        "--update",
-        metavar="FILE",
-        help="replace the text between <!-- STUDY --> and <!-- /STUDY --> instead of printing (STUDY: the "
-        "table's study)",
     )
     pr = sub.add_parser(
         "prose",
