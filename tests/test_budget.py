@@ -11,7 +11,7 @@ from scipy import stats
 
 from bsrbench.errors import InputError
 from bsrbench.reporting import budget, headline, reconcile
-from bsrbench.reporting.published import reconcile_markdown
+from bsrbench.reporting.published import main, reconcile_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "reports" / "published"
@@ -116,3 +116,101 @@ def test_the_fair_budget_table_of_the_docs_is_the_published_table(tmp_path):
     )
     _block_is_fresh(tmp_path, "paper-pmfair", text)
     assert reconcile.PM in text
+
+
+def _table(tmp_path, change):
+    """A copy of the published fair-budget table, with its provenance, changed by ``change(df) -> df``."""
+    shutil.copy(PUBLISHED / "paper-pmfair.provenance.json", tmp_path)
+    change(pd.read_csv(PUBLISHED / "paper-pmfair.csv")).to_csv(
+        tmp_path / "paper-pmfair.csv", index=False
+    )
+    return tmp_path / "paper-pmfair.csv"
+
+
+def _set(column, value, row=3):
+    """A change that writes ``value`` to ``column`` of the ``row``-th row (line ``row + 2`` of the CSV)."""
+
+    def change(df):
+        df[column] = df[column].astype(object)
+        df.loc[row, column] = value
+        return df
+
+    return change
+
+
+def _budget_error(capsys, *argv):
+    """The one line of error of ``published budget ARGV`` (exit 2)."""
+    assert main(["budget", *map(str, argv)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and err.startswith("error: ")
+    return err.removeprefix("error: ").rstrip("\n")
+
+
+def test_a_table_without_the_columns_of_the_caption_is_refused_and_not_written(tmp_path, capsys):
+    cols = ["r_hat_test_error", "params", "train_error"]
+    table = _table(tmp_path, lambda df: df.drop(columns=cols))
+    docs = tmp_path / "results.md"
+    shutil.copy(ROOT / "docs" / "results.md", docs)
+    expected = (
+        f"{table}: lacks columns ['train_error', 'r_hat_test_error', 'params'], which the budget table needs; "
+        "expected rows of today's code (rerun the study)"
+    )
+    assert _budget_error(capsys, table) == expected
+    assert _budget_error(capsys, table, "--update", docs) == expected
+    assert docs.read_text() == (ROOT / "docs" / "results.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "value, told",
+    [
+        (
+            '{"n_atoms": 64, "n_neighbors": 5}',
+            """is '{"n_atoms": 64, "n_neighbors": 5}': 'b_xy' is missing""",
+        ),
+        (
+            '{"n_atoms": 64, "n_neighbors": 5, "b_xy": "1"}',
+            """is '{"n_atoms": 64, "n_neighbors": 5, "b_xy": "1"}': 'b_xy' is '1'""",
+        ),
+        ("[64, 5, 1.0]", "is '[64, 5, 1.0]'"),
+    ],
+    ids=["no b_xy", "b_xy a string", "a list"],
+)
+def test_params_without_the_cv_choice_are_named_by_line(tmp_path, capsys, value, told):
+    table = _table(tmp_path, _set("params", value))
+    assert _budget_error(capsys, table) == (
+        f"{table} line 5: column 'params' {told}; expected a JSON object with a number for each of "
+        "['n_atoms', 'n_neighbors', 'b_xy'] (the CV's choice)"
+    )
+
+
+def test_a_non_numeric_r_hat_is_named_by_line(tmp_path, capsys):
+    table = _table(tmp_path, _set("r_hat_test_error", "1.0O"))
+    assert _budget_error(capsys, table) == (
+        f"{table} line 5: column 'r_hat_test_error' is '1.0O'; expected a finite number (the split R-hat of "
+        "the test error over the chains)"
+    )
+
+
+def test_tables_without_shared_cells_are_named(tmp_path, capsys):
+    beside = PUBLISHED / "paper.csv"
+    table = _table(tmp_path, lambda df: df.assign(n_train=df["n_train"] + 1))
+    assert _budget_error(capsys, table) == (
+        f"{table} beside {beside}: found the PMs ['PM (fair budget)'] on the cells of {table}; expected the "
+        "headline PM and one fair-budget PM"
+    )
+
+    table = _table(
+        tmp_path, lambda df: df.assign(paper_activity=df["paper_activity"] + " (renamed)")
+    )
+    assert _budget_error(capsys, table) == (
+        f"{table} and {beside} share no cell (source, activity, N) holding both PMs; expected the headline "
+        "table to hold the fair-budget table's cells"
+    )
+
+
+def test_a_row_of_a_data_set_outside_the_study_is_named_by_line(tmp_path, capsys):
+    table = _table(tmp_path, lambda df: df.assign(activity=df["activity"] + "_late"))
+    assert _budget_error(capsys, table) == (
+        f"{table} line 2: columns 'source', 'activity' are 'hsc', 'acrobatics_late'; expected a data set of the "
+        "study's configuration (the configuration files the table's provenance names)"
+    )

@@ -9,23 +9,74 @@ over the cells). :func:`summary` adds, per PM, the cells better, tied or worse t
 (:func:`.reconcile.pm_summary`).
 """
 
-import json
+import math
 
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import DataFileError, InputError
+from ..safeload import json_text
 from . import reconcile
 
 #: The paper protocol's variant (random splits, the files' first 600 rows, tuned methods, wrapped error).
 VARIANT = reconcile.BASE
+#: The columns the headline table needs of every row, and the fair-budget table (its PM's R-hat and CV choice).
+NEEDED = [*reconcile.NEEDED, "error", "train_error"]
+NEEDED_FAIR = [*NEEDED, "r_hat_test_error", "params"]
+#: The parameters of the fair PM's CV choice, as :func:`_choice` shows them.
+CHOICE = ("n_atoms", "n_neighbors", "b_xy")
+
+
+def _checked(table, df, needed, datasets):
+    """``df`` (the rows of ``table``) with its PM rows' numbers read as numbers; DataFileError naming ``table``
+    and the columns of ``needed`` it lacks, InputError naming the line, the column and the value of a row of a
+    data set that ``datasets`` (the study's) lacks, or of a PM row whose ``train_error`` or ``r_hat_test_error``
+    is not a finite number or whose ``params`` do not hold the CV's choice (:func:`_choice`): a table of other
+    rows must not pass as a caption of NaNs or of no converged split."""
+    from .tables import paper_names
+
+    missing = [c for c in needed if c not in df.columns]
+    if missing:
+        raise DataFileError(
+            table,
+            f"lacks columns {missing}, which the budget table needs; expected rows of today's code (rerun the "
+            "study)",
+        )
+    for i, (s, a) in enumerate(zip(df["source"], df["activity"])):
+        if a not in (datasets.get(s) or {}):
+            raise InputError(
+                f"{table} line {i + 2}: columns 'source', 'activity' are {s!r}, {a!r}; expected a data set of "
+                "the study's configuration (the configuration files the table's provenance names)"
+            )
+    pm = (df["method"].map(paper_names(df)) == reconcile.PM).to_numpy()
+    expected = {
+        "train_error": "a finite number (degrees)",
+        "r_hat_test_error": "a finite number (the split R-hat of the test error over the chains)",
+    }
+    out = df.copy()
+    for col in [c for c in expected if c in needed]:
+        v = pd.to_numeric(df[col], errors="coerce")
+        bad = np.flatnonzero(pm & ~np.isfinite(v.to_numpy(dtype=float)))
+        if len(bad):
+            value = df[col].iloc[bad[0]]
+            value = value.item() if isinstance(value, np.generic) else value
+            raise InputError(
+                f"{table} line {bad[0] + 2}: column {col!r} is {value!r}; expected {expected[col]}"
+            )
+        out[col] = v
+    if "params" in needed:
+        for i in np.flatnonzero(pm):
+            _choice(df["params"].iloc[i], f"{table} line {i + 2}: column 'params'")
+    return out
 
 
 def published_inputs(table, beside, paper):
     """The rows of the fair-budget ``table`` and of the headline table ``beside`` (restricted to the fair table's
     cells), the two studies' configurations merged (methods of both), their data sets and the paper's tables."""
     df, config, datasets, book = reconcile.published_inputs(table, paper)
+    df = _checked(table, df, NEEDED_FAIR, datasets)
     base, base_config, base_datasets, _ = reconcile.published_inputs(beside, paper)
+    base = _checked(beside, base, NEEDED, base_datasets)
     clash = sorted(set(df["method"]) & set(base["method"]))
     if clash:
         raise InputError(
@@ -40,25 +91,36 @@ def published_inputs(table, beside, paper):
     return pd.concat([base, df], ignore_index=True), {**config, "methods": methods}, sets, book
 
 
-def _choice(params):
-    """The CV's choice of K, j and b_xy from a row's ``params`` JSON."""
-    try:
-        p = json.loads(params)
-    except (TypeError, ValueError):
-        return "--"
-    return f"K {p.get('n_atoms')}, j {p.get('n_neighbors')}, b {p.get('b_xy'):g}" if p else "--"
+def _choice(params, where="column 'params'"):
+    """The CV's choice of K, j and b_xy from a row's ``params`` JSON; InputError naming ``where`` (the table's
+    line and column), the value and what was expected unless it is a JSON object with a number for each of
+    :data:`CHOICE`."""
+    p = json_text(params, where) if isinstance(params, str) else None
+    shown = repr(params) if len(repr(params)) <= 80 else repr(params)[:77] + "..."
+    expected = f"expected a JSON object with a number for each of {list(CHOICE)} (the CV's choice)"
+    if not isinstance(p, dict):
+        raise InputError(f"{where} is {shown}; {expected}")
+    for k in CHOICE:
+        v = p.get(k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            got = "is missing" if k not in p else f"is {v!r}"
+            raise InputError(f"{where} is {shown}: {k!r} {got}; {expected}")
+    return f"K {p['n_atoms']}, j {p['n_neighbors']}, b {p['b_xy']:g}"
 
 
-def cells(rows, pm_names, paper):
+def cells(rows, pm_names, paper, tables=("the fair-budget table", "the headline table")):
     """One row per cell: the mean errors (degrees), the fair PM's split R-hat (median and largest over the seeds)
     and CV choice, and the paired comparison of the fair and headline PMs (``fair_vs_pm``: better / tied /
-    worse, Holm over the cells)."""
+    worse, Holm over the cells). ``tables``: the fair-budget and the headline table, as messages name them."""
     from .comparisons import compare_pair, holm
     from .tables import paper_key
 
     fair = [n for n in pm_names if n != reconcile.PM]
     if reconcile.PM not in pm_names or len(fair) != 1:
-        raise InputError(f"expected the headline PM and one fair-budget PM; found {pm_names}")
+        raise InputError(
+            f"{tables[0]} beside {tables[1]}: found the PMs {pm_names} on the cells of {tables[0]}; expected "
+            "the headline PM and one fair-budget PM"
+        )
     fair = fair[0]
     ref = paper.set_index(["key", "n_train", "method"])["mean_deg"]
     out = []
@@ -99,7 +161,10 @@ def cells(rows, pm_names, paper):
         )
     c = pd.DataFrame(out)
     if c.empty:
-        raise InputError("the fair-budget table and the headline table share no cell")
+        raise InputError(
+            f"{tables[0]} and {tables[1]} share no cell (source, activity, N) holding both PMs; expected the "
+            "headline table to hold the fair-budget table's cells"
+        )
     c["p_holm"] = holm(list(c["p"]))
     c["fair_vs_pm"] = np.where(
         c["p_holm"] < 0.05, np.where(c["diff"] < 0, "better", "worse"), "tied"
@@ -149,7 +214,7 @@ def published_parts(table, beside, paper):
     rows, pm = reconcile.pm_rows(df, config, datasets, VARIANT)
     if not len(rows):
         raise InputError(f"{table}: no PM rows on the paper protocol's frames")
-    return cells(rows, pm, book), reconcile.pm_summary(rows, pm, book)
+    return cells(rows, pm, book, (table, beside)), reconcile.pm_summary(rows, pm, book)
 
 
 def published_markdown(table, beside, paper):
