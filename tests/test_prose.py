@@ -36,6 +36,25 @@ def test_a_changed_number_is_reported_with_its_line_and_update_restores_it(tmp_p
     assert prose.update([copy], book=BOOK) == []  # nothing left to rewrite
 
 
+def test_update_refuses_a_symbolic_link_before_writing_any_file(tmp_path):
+    """Before: the files before a symbolic link were rewritten and the link replaced by a regular file; now every
+    file to rewrite is checked first and nothing is written."""
+    stale = "<!-- n:paper.cells -->28 (by hand)<!-- /n --> cells\n"
+    first, real = tmp_path / "a.md", tmp_path / "real.md"
+    first.write_text(stale, encoding="utf-8")
+    real.write_text(stale, encoding="utf-8")
+    link = tmp_path / "link.md"
+    link.symlink_to(real)
+    with pytest.raises(DataFileError) as e:
+        prose.update([first, link], book=BOOK)
+    assert str(e.value) == (
+        f"{link}: is a symbolic link (to '{real}'); expected a regular file (the update would replace the link "
+        "by a copy): name the file it points to"
+    )
+    assert first.read_text(encoding="utf-8") == stale and link.is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.md", "link.md", "real.md"]
+
+
 def test_an_unknown_claim_is_refused_in_one_line(tmp_path):
     f = tmp_path / "x.md"
     f.write_text("PM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n", encoding="utf-8")

@@ -305,3 +305,83 @@ def test_publish_with_an_unreadable_destination_provenance_writes_nothing(
     assert err.startswith(f"error: {prov}: cannot read the provenance") and err.count("\n") == 1
     assert dest.read_text() == "the old table\n" and prov.read_text() == '{"study": "paper-hsc", '
     assert sorted(p.name for p in dest.parent.iterdir()) == [dest.name, prov.name]
+
+
+# ------------------------------------------------------------------------------------ --update FILE: the target
+def _targets(tmp_path):
+    """A regular file with the markers of every block, a symbolic link to it and a read-only copy of it."""
+    text = "".join(
+        f"<!-- {b} -->\nold\n<!-- /{b} -->\n"
+        for b in ("results-table:hsc", "results-summary", "mechanisms", "reconcile", "paper-pmfair")
+    )
+    real = tmp_path / "real.md"
+    real.write_text(text)
+    link = tmp_path / "link.md"
+    link.symlink_to(real)
+    ro = tmp_path / "ro.md"
+    ro.write_text(text)
+    ro.chmod(0o444)
+    return real, link, ro
+
+
+def _refused(path):
+    """The message refusing ``path`` as an --update target."""
+    if path.is_symlink():
+        return (
+            f"{path}: is a symbolic link (to '{path.readlink()}'); expected a regular file (the update would "
+            "replace the link by a copy): name the file it points to"
+        )
+    return (
+        f"{path}: is read-only (mode 444); expected a writable file (the update would replace it): make it "
+        "writable first"
+    )
+
+
+def _listing(folder):
+    """{name: (is a link, mode, content)} of the files of ``folder``."""
+    return {p.name: (p.is_symlink(), p.lstat().st_mode, p.read_bytes()) for p in folder.iterdir()}
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["readme", str(PUBLISHED)],
+        ["mechanisms", str(PUBLISHED.with_name("ablation-mechanisms.csv"))],
+        ["reconcile", str(PUBLISHED.with_name("reconcile.csv"))],
+        ["budget", str(PUBLISHED.with_name("paper-pmfair.csv"))],
+    ],
+    ids=["readme", "mechanisms", "reconcile", "budget"],
+)
+@pytest.mark.parametrize("target", ["link", "read-only"])
+def test_update_refuses_a_symbolic_link_and_a_read_only_file(tmp_path, capsys, args, target):
+    """Before: --update's atomic rename put a regular file in the place of a symbolic link, and replaced a
+    read-only file; now exit 2, one line naming the path, and nothing written."""
+    from bsrbench.reporting.published import main
+
+    _, link, ro = _targets(tmp_path)
+    path = link if target == "link" else ro
+    before = _listing(tmp_path)
+    assert main([*args, "--update", str(path)]) == 2
+    assert capsys.readouterr().err == f"error: {_refused(path)}\n"
+    assert _listing(tmp_path) == before
+
+
+def test_the_writers_of_update_refuse_the_target_themselves(tmp_path):
+    """The functions that write --update's file check it too, not only the command line."""
+    from bsrbench.errors import DataFileError
+    from bsrbench.reporting import headline
+    from bsrbench.reporting.published import update_mechanisms, update_readme
+
+    _, link, ro = _targets(tmp_path)
+    before = _listing(tmp_path)
+    for path in (link, ro):
+        for write in (
+            lambda p: update_readme(p, {"hsc": "new"}, summary="new"),
+            lambda p: update_mechanisms(p, "new"),
+            lambda p: headline.update_blocks(p, {"reconcile": "new"}),
+            lambda p: headline.write_update(p, "new"),
+        ):
+            with pytest.raises(DataFileError) as e:
+                write(path)
+            assert str(e.value) == _refused(path)
+    assert _listing(tmp_path) == before

@@ -7,7 +7,9 @@ NLPD that one split dominates. ``python -m bsrbench.reporting.published readme .
 the markers ``<!-- verdict -->``, ``<!-- findings -->`` and ``<!-- notes -->`` of the file.
 """
 
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -290,12 +292,46 @@ def notes_markdown(df, *, labels, protocol="random", share=0.5):
     return "\n".join(out) if out else "- No mean NLPD is dominated by one split."
 
 
+def check_update_target(path):
+    """Refuse ``path`` as a file that ``--update`` rewrites, before anything is written: DataFileError naming it
+    if it is a symbolic link (the atomic rename that writes it would put a regular file in the link's place) or a
+    read-only file (the rename would replace it all the same)."""
+    path = Path(path)
+    if path.is_symlink():
+        raise DataFileError(
+            path,
+            f"is a symbolic link (to {os.readlink(path)!r}); expected a regular file (the update would replace "
+            "the link by a copy): name the file it points to",
+        )
+    if not path.is_file():
+        return  # a missing file or a folder: refused when read
+    mode = path.stat().st_mode
+    if not os.access(path, os.W_OK) or not mode & stat.S_IWUSR:
+        raise DataFileError(
+            path,
+            f"is read-only (mode {stat.S_IMODE(mode):o}); expected a writable file (the update would replace "
+            "it): make it writable first",
+        )
+
+
+def write_update(path, text):
+    """Write ``text`` to the file ``path`` of ``--update`` (:func:`check_update_target`), by atomic rename:
+    DataFileError naming ``path`` if it is refused or cannot be written (it is then unchanged)."""
+    check_update_target(path)
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+
+
 def update_blocks(path, blocks, required=None):
     """Replace the text between ``<!-- name -->`` and ``<!-- /name -->`` for each ``name: text`` of ``blocks``
-    present in ``path``; returns the names written. DataFileError naming ``path`` if it cannot be read or
-    written, or if it lacks the markers of a name in ``required`` (``{name: what the block is}``); the file is
-    then unchanged."""
+    present in ``path``; returns the names written. DataFileError naming ``path`` if it is refused
+    (:func:`check_update_target`), cannot be read or written, or lacks the markers of a name in ``required``
+    (``{name: what the block is}``); the file is then unchanged."""
     path = Path(path)
+    check_update_target(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -310,11 +346,7 @@ def update_blocks(path, blocks, required=None):
             raise DataFileError(
                 path, f"no markers '<!-- {name} -->' ... '<!-- /{name} -->' for {required[name]}"
             )
-    try:
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+    write_update(path, text)
     return written
 
 
@@ -331,9 +363,11 @@ def blocks(df, comp, v, *, labels, protocol="random"):
 __all__ = [
     "MARKERS",
     "blocks",
+    "check_update_target",
     "findings_markdown",
     "notes_markdown",
     "p_text",
     "update_blocks",
     "verdict_markdown",
+    "write_update",
 ]

@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError
-from ..io import atomic_path
 
 ROOT = Path(__file__).resolve().parents[3]
 #: The files whose prose may hold markers: the README, the documents, the configuration comments.
@@ -1054,24 +1053,26 @@ def check(paths=None, book=None, root=ROOT):
 
 
 def update(paths=None, book=None, root=ROOT):
-    """Rewrite every marker of ``paths`` with its claim's value today; the files changed."""
+    """Rewrite every marker of ``paths`` with its claim's value today; the files changed. Every file to change is
+    checked (:func:`.headline.check_update_target`) before any is written."""
+    from .headline import check_update_target, write_update
+
     paths = files(root) if paths is None else paths
     book = book or Book(root)
-    changed = []
+    new = {}
     for p in paths:
         text = _read_text(p)
         now = values([m.group(1) for m in MARKER.finditer(text)], book)
-        new = MARKER.sub(
+        new[p] = MARKER.sub(
             lambda m, now=now: f"<!-- n:{m.group(1)} -->{now[m.group(1)]}<!-- /n -->", text
         )
-        if new != text:
-            try:
-                with atomic_path(p) as tmp:
-                    Path(tmp).write_text(new, encoding="utf-8")
-            except OSError as exc:
-                raise DataFileError(p, f"cannot be written ({exc.strerror})") from None
-            changed.append(p)
-    return changed
+        if new[p] == text:
+            del new[p]
+    for p in new:
+        check_update_target(p)
+    for p, text in new.items():
+        write_update(p, text)
+    return list(new)
 
 
 def used(root=ROOT):

@@ -48,7 +48,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError
-from ..io import atomic_path
 from ..methods import configured
 from . import comparisons as cmp
 from . import freshness, headline
@@ -342,9 +341,11 @@ def update_readme(path, tables, counts=None, summary=None):
     ``<!-- /results-summary -->``, where the file has these markers: the README has the summary and the counts,
     docs/results.md the tables per source. Returns whether the counts were written.
 
-    Raises DataFileError naming ``path`` if it is missing, not UTF-8 text, has neither a source's table markers
-    nor the summary markers, or cannot be written (the file is then unchanged)."""
+    Raises DataFileError naming ``path`` if it is refused (:func:`.headline.check_update_target`), missing, not
+    UTF-8 text, has neither a source's table markers nor the summary markers, or cannot be written (the file is
+    then unchanged)."""
     path = Path(path)
+    headline.check_update_target(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -378,11 +379,7 @@ def update_readme(path, tables, counts=None, summary=None):
         if pat.search(text):
             text = pat.sub(lambda m: m.group(1) + counts + m.group(2), text)
             wrote_counts = True
-    try:
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise DataFileError(path, f"cannot write the updated file ({exc.strerror or exc})") from exc
+    headline.write_update(path, text)
     return wrote_counts
 
 
@@ -514,6 +511,8 @@ def main(argv=None):
     if args.cmd in freshness.COMMANDS:
         return freshness.run_command(args)
     try:
+        if isinstance(getattr(args, "update", None), str):  # refused before the tables are computed
+            headline.check_update_target(args.update)
         if args.cmd == "prose":
             from . import prose
 
