@@ -1,6 +1,6 @@
 """Numbers in prose generated from the published tables (bsrbench.reporting.prose): none is stale, a changed one
-is found and restored, an unknown claim or an unreadable table is refused in one line, and claims agree with a hand
-computation."""
+is found and restored, an unknown claim, a malformed marker or an unreadable table is refused in one line, and claims
+agree with a hand computation."""
 
 import pandas as pd
 import pytest
@@ -55,21 +55,97 @@ def test_update_refuses_a_symbolic_link_before_writing_any_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.md", "link.md", "real.md"]
 
 
-def test_an_unknown_claim_is_refused_in_one_line(tmp_path):
+UNKNOWN = "<!-- n:paper.cells -->32<!-- /n --> cells.\nPM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n"
+
+
+def _unknown(f):
+    return (
+        f"{f}:2: unknown claim 'paper.pm_wins'; expected a claim of bsrbench.reporting.prose.CLAIMS "
+        f"({len(prose.CLAIMS)} defined)"
+    )
+
+
+def test_an_unknown_claim_is_refused_in_one_line_naming_its_path_and_line(tmp_path):
     f = tmp_path / "x.md"
-    f.write_text("PM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n", encoding="utf-8")
-    with pytest.raises(InputError, match=r"unknown claims \['paper.pm_wins'\]") as e:
-        prose.check([f], book=BOOK)
-    assert "\n" not in str(e.value)
+    f.write_text(UNKNOWN, encoding="utf-8")
+    for run in (prose.check, prose.update):
+        with pytest.raises(InputError) as e:
+            run([f], book=BOOK)
+        assert str(e.value) == _unknown(f)
+    assert f.read_text(encoding="utf-8") == UNKNOWN
 
 
 def test_the_command_refuses_an_unknown_claim_in_one_line(tmp_path, monkeypatch, capsys):
     f = tmp_path / "x.md"
-    f.write_text("PM wins <!-- n:paper.pm_wins -->all<!-- /n --> cells.\n", encoding="utf-8")
+    f.write_text(UNKNOWN, encoding="utf-8")
     monkeypatch.setattr(prose, "files", lambda root=None: [f])
     assert main(["prose"]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("error: unknown claims ['paper.pm_wins']") and err.count("\n") == 1
+    assert capsys.readouterr().err == f"error: {_unknown(f)}\n"
+
+
+EXPECTED_TAG = (
+    "expected exactly '<!-- n:CLAIM -->' or '<!-- /n -->' (CLAIM: letters, digits, '_', '.', '-')"
+)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "a\nPM beats 1-NN in <!-- n:paper.pm_beats_nn -->5 cells.\n",
+            ":2: marker '<!-- n:paper.pm_beats_nn -->' is not closed; expected '<!-- /n -->' after its number",
+        ),
+        (
+            "<!-- n:paper.cells -->32 cells,\n<!-- n:paper.motions -->4<!-- /n --> motions\n",
+            ":1: marker '<!-- n:paper.cells -->' is not closed before the next one (line 2); expected "
+            "'<!-- /n -->' after its number",
+        ),
+        (
+            "a\n\n<!--n:paper.cells-->32<!--/n--> cells\n",
+            f":3: malformed marker '<!--n:paper.cells-->'; {EXPECTED_TAG}",
+        ),
+        (
+            "<!-- n:paper.cells-->32<!-- /n --> cells\n",
+            f":1: malformed marker '<!-- n:paper.cells-->'; {EXPECTED_TAG}",
+        ),
+        (
+            "<!-- n: paper.cells -->32<!-- /n -->\n",
+            f":1: malformed marker '<!-- n: paper.cells -->'; {EXPECTED_TAG}",
+        ),
+        (
+            "<!-- n:paper.cells -->32<!-- /n-->\n",
+            f":1: malformed marker '<!-- /n-->'; {EXPECTED_TAG}",
+        ),
+        (
+            "32<!-- /n --> cells\n",
+            ":1: '<!-- /n -->' closes no marker; expected '<!-- n:CLAIM -->' before it",
+        ),
+    ],
+    ids=[
+        "unclosed",
+        "unclosed-before-next",
+        "no-spaces",
+        "no-space-before-end",
+        "space-after-colon",
+        "closing-without-space",
+        "closes-none",
+    ],
+)
+def test_a_malformed_marker_is_refused_naming_its_path_and_line(
+    tmp_path, monkeypatch, capsys, text, message
+):
+    """Before: a marker without its closing tag or without the spaces was skipped, its number unchecked (or taken
+    with the next marker's); now check, update and the command refuse it in one line naming path:line."""
+    f = tmp_path / "x.md"
+    f.write_text(text, encoding="utf-8")
+    for run in (prose.check, prose.update):
+        with pytest.raises(InputError) as e:
+            run([f], book=BOOK)
+        assert str(e.value) == f"{f}{message}"
+    assert f.read_text(encoding="utf-8") == text
+    monkeypatch.setattr(prose, "files", lambda root=None: [f])
+    assert main(["prose"]) == 2
+    assert capsys.readouterr().err == f"error: {f}{message}\n"
 
 
 def test_a_missing_table_is_named_in_one_line(tmp_path):

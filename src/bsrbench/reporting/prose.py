@@ -9,7 +9,9 @@ The text between the markers is the value of the named claim (:data:`CLAIMS`, a 
 :class:`Book`). ``python -m bsrbench.reporting.published prose`` lists every marker whose text differs from its
 claim's value today (exit 1), ``--update`` rewrites them; the test suite runs the check, so a regenerated table
 that moves a number, or a number edited by hand, fails until the text is regenerated. Where a number's words
-depend on its value ("the highest", "none"), the claim returns the words too.
+depend on its value ("the highest", "none"), the claim returns the words too. A marker that is not closed, a tag
+that is almost a marker's (``<!--n:x-->``, ``<!-- /n-->``) and an unknown claim are refused, naming the file and
+line: a marker the parser skipped would leave its number unchecked.
 
 Numbers that no published table holds (a run's wall time, a measurement against an older table) stay hand-written
 and say which run or which table they describe.
@@ -28,6 +30,11 @@ ROOT = Path(__file__).resolve().parents[3]
 #: The files whose prose may hold markers: the README, the documents, the configuration comments.
 FILES = ("README.md", "docs/*.md", "config/*.yaml")
 MARKER = re.compile(r"<!-- n:([A-Za-z0-9_.-]+) -->(.*?)<!-- /n -->", re.S)
+#: What looks like a marker's opening or closing tag (``<!--n:x-->``, ``<!-- n: x -->``, ``<!-- /n-->``, ...): each
+#: must be exactly one of :data:`MARKER`'s, or its number would go unchecked.
+TAG = re.compile(r"<!--\s*/?\s*n\b[^>\n]*>?")
+OPEN = re.compile(r"<!-- n:([A-Za-z0-9_.-]+) -->")
+CLOSE = "<!-- /n -->"
 
 
 class Book:
@@ -1014,11 +1021,54 @@ def _read_text(path):
 
 
 def markers(path):
-    """``[(line, name, text)]`` of the markers of ``path``."""
+    """``[(line, name, text)]`` of the markers of ``path``; InputError naming ``path:line`` of a malformed one: a
+    tag like a marker's that is not exactly ``<!-- n:CLAIM -->`` or ``<!-- /n -->`` (:data:`TAG`), a marker not
+    closed before the next one or the end of the file, a closing tag that closes none."""
     text = _read_text(path)
-    return [
-        (text.count("\n", 0, m.start()) + 1, m.group(1), m.group(2)) for m in MARKER.finditer(text)
-    ]
+
+    def line(t):
+        return text.count("\n", 0, t.start()) + 1
+
+    out, opened = [], None  # opened: the TAG and OPEN matches of the marker not closed yet
+    for t in TAG.finditer(text):
+        m = OPEN.fullmatch(t.group())
+        if m is None and t.group() != CLOSE:
+            raise InputError(
+                f"{_shown(path)}:{line(t)}: malformed marker {t.group()!r}; expected exactly "
+                f"'<!-- n:CLAIM -->' or {CLOSE!r} (CLAIM: letters, digits, '_', '.', '-')"
+            )
+        if m is not None and opened is not None:
+            raise InputError(
+                f"{_shown(path)}:{line(opened[0])}: marker {opened[0].group()!r} is not closed before the "
+                f"next one (line {line(t)}); expected {CLOSE!r} after its number"
+            )
+        if m is None and opened is None:
+            raise InputError(
+                f"{_shown(path)}:{line(t)}: {CLOSE!r} closes no marker; expected '<!-- n:CLAIM -->' before it"
+            )
+        if m is not None:
+            opened = (t, m)
+            continue
+        out.append((line(opened[0]), opened[1].group(1), text[opened[0].end() : t.start()]))
+        opened = None
+    if opened is not None:
+        raise InputError(
+            f"{_shown(path)}:{line(opened[0])}: marker {opened[0].group()!r} is not closed; expected "
+            f"{CLOSE!r} after its number"
+        )
+    return out
+
+
+def _known(found):
+    """InputError naming ``path:line`` of the first marker of ``found`` (``[(path, line, name, text)]``) whose claim
+    :data:`CLAIMS` does not define."""
+    unknown = [(p, line, n) for p, line, n, _ in found if n not in CLAIMS]
+    if unknown:
+        (p, line, n), more = unknown[0], len(unknown) - 1
+        raise InputError(
+            f"{_shown(p)}:{line}: unknown claim {n!r}{f' (and {more} more)' if more else ''}; expected a claim "
+            f"of bsrbench.reporting.prose.CLAIMS ({len(CLAIMS)} defined)"
+        )
 
 
 def values(names, book):
@@ -1048,6 +1098,7 @@ def check(paths=None, book=None, root=ROOT):
     paths = files(root) if paths is None else paths
     book = book or Book(root)
     found = [(p, *m) for p in paths for m in markers(p)]
+    _known(found)
     now = values([n for *_, n, _ in found], book)
     return [(p, line, n, t, now[n]) for p, line, n, t in found if t != now[n]]
 
@@ -1061,8 +1112,10 @@ def update(paths=None, book=None, root=ROOT):
     book = book or Book(root)
     new = {}
     for p in paths:
+        found = [(p, *m) for m in markers(p)]
+        _known(found)
         text = _read_text(p)
-        now = values([m.group(1) for m in MARKER.finditer(text)], book)
+        now = values([n for _, _, n, _ in found], book)
         new[p] = MARKER.sub(
             lambda m, now=now: f"<!-- n:{m.group(1)} -->{now[m.group(1)]}<!-- /n -->", text
         )
