@@ -1,5 +1,19 @@
 # bsrbench: entry point (configuration, rule modules, default target).
+import os
+import sys
+
 from snakemake.utils import min_version
+
+# Python's path without this folder and the working directory (Snakemake puts the Snakefile's folder first), unless
+# PYTHONPATH names them: a package planted there (./sklearn/, ./bsrbench/) would shadow an installed one and run
+# when imported. Jobs run Python with -P for the same reason.
+_here = {os.path.realpath(workflow.basedir), os.path.realpath(os.getcwd())}
+_here -= {
+    os.path.realpath(p)
+    for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+    if os.path.isabs(p)
+}
+sys.path[:] = [p for p in sys.path if p and os.path.realpath(p) not in _here]
 
 min_version("9.0")
 
@@ -15,8 +29,6 @@ include: "workflow/rules/common.smk"
 
 # Fit jobs run this interpreter's `python` (docs/performance.md).
 # job_server is an environment variable: switching it reruns nothing.
-import os
-
 from bsrbench import jobserver
 
 jobserver.configure_shell_jobs(use_server=config.get("job_server", True))

@@ -326,8 +326,9 @@ def test_a_dry_run_refuses_an_estimator_that_is_not_an_estimator_class_and_calls
 
 
 def test_a_dry_run_refuses_a_module_planted_in_the_working_directory(work, tmp_path):
-    """Snakemake runs in the project folder, which is on Python's path: a ``.py`` file planted there and named by
-    a configuration is refused in one line, and its top-level code never runs."""
+    """Snakemake puts the project folder (its working directory) on Python's path, and the Snakefile takes it off:
+    a ``.py`` file planted there and named by a configuration is not found, refused in one line, and its
+    top-level code never runs."""
     marker = tmp_path / "marker"
     planted = work / "planted_estimator.py"
     planted.write_text(
@@ -347,8 +348,8 @@ def test_a_dry_run_refuses_a_module_planted_in_the_working_directory(work, tmp_p
     assert "Traceback" not in out and 'File "' not in out, out[-3000:]
     lines = [x for x in out.splitlines() if x.startswith("config key 'methods.EVIL.estimator'")]
     assert len(lines) == 1 and lines[0].startswith(
-        "config key 'methods.EVIL.estimator': estimator 'planted_estimator:Planted': module 'planted_estimator' "
-        f"is found in {work}, which no installation put on the path"
+        "config key 'methods.EVIL.estimator': estimator 'planted_estimator:Planted': cannot find module "
+        "'planted_estimator'; expected 'package.module:ClassName'"
     ), out
     assert not marker.exists()
 

@@ -368,10 +368,20 @@ def copy_tree(work):
     return work
 
 
+# Packages planted in the project folder, each writing a marker file if imported (test_planted_packages_never_run).
+PLANTED = ("bsrbench", "numpy", "sklearn")
+
+
 @pytest.fixture(scope="module")
 def ci_run(tmp_path_factory):
-    """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied)."""
+    """config/ci.yaml run end to end in a copy of the working tree (resources linked, not copied), into whose
+    folder packages named like the project's and its dependencies were planted (:data:`PLANTED`)."""
     work = copy_tree(tmp_path_factory.mktemp("study"))
+    markers = work.parent / "markers"
+    markers.mkdir()
+    for name in PLANTED:
+        (work / name).mkdir()
+        (work / name / "__init__.py").write_text(f"open({str(markers / name)!r}, 'w').close()\n")
     res = smk(
         "reports/ci/report.pdf",
         "--cores",
@@ -383,6 +393,14 @@ def ci_run(tmp_path_factory):
     )
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
     return work
+
+
+def test_planted_packages_never_run(ci_run):
+    """Snakemake puts the Snakefile's folder first on Python's path and ``python -m`` the working directory: the
+    Snakefile takes them off and jobs run ``python -P``, so a package planted there neither shadows the installed
+    one nor runs, in the Snakefile, the job server or a job run in-process."""
+    assert sorted(p.name for p in (ci_run.parent / "markers").iterdir()) == []
+    assert sorted(p.name for p in ci_run.iterdir() if p.name in PLANTED) == sorted(PLANTED)
 
 
 def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):

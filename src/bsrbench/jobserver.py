@@ -560,7 +560,7 @@ def _named(nl):
 
 def job_params():
     """A Snakemake ``params`` function: the job's named input, output and wildcards as JSON, for a shell rule
-    that runs ``python -m bsrbench.jobserver job TARGET --threads {threads} --log {log} JOB --settings SETTINGS``
+    that runs ``python -P -m bsrbench.jobserver job TARGET --threads {threads} --log {log} JOB --settings SETTINGS``
     (SETTINGS: :func:`job_settings`).
 
     A shell command starts in about 0.06 s where a ``script:`` job spends about 0.25 s importing Snakemake's
@@ -882,7 +882,7 @@ def _start_server(path, preload=(), timeout=None):
             log = files.open(".log", os.O_WRONLY | os.O_APPEND)
             try:
                 server = subprocess.Popen(
-                    [sys.executable, "-m", "bsrbench.jobserver", str(path), *preload],
+                    [sys.executable, "-P", "-m", "bsrbench.jobserver", str(path), *preload],
                     stdin=subprocess.DEVNULL,
                     stdout=subprocess.DEVNULL,
                     stderr=log,

@@ -3,7 +3,7 @@
 # Jobs run in bsrbench.jobs, through the job server; a block's seeds one after the other (bsrbench.jobserver).
 
 JOB = (
-    "python -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "
+    "python -P -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "
     "--settings {{params.settings:q}}"
 )
 
