@@ -83,8 +83,50 @@ def test_cells_are_means_r_hats_and_holm_adjusted_paired_tests_by_hand():
     assert holm[p30] < 0.05 <= holm[p60]
     assert (c.loc[30, "fair_vs_pm"], c.loc[60, "fair_vs_pm"]) == ("better", "tied")
     text = budget.markdown(c.reset_index(), [])
-    assert "| golf N = 30 | 7.08 | 5.04 | 1.00 | 10.00 | 6.00 | 5.50 (TGP) | 1.010, 1.300 |" in text
+    assert (
+        "| hsc golf N = 30 | 7.08 | 5.04 | 1.00 | 10.00 | 6.00 | 5.50 (TGP) | 1.010, 1.300 |"
+        in text
+    )
     assert "8 of 10 splits" in text and "better 1, tied 1, worse 0" in text
+
+
+def test_across_motions_the_unit_is_the_distinct_motion_by_hand():
+    """Three motions, one of them seen by both sources (hsc run and mocap run): the motion's error is the mean of
+    its cells, the fair PM's difference to each method is tested over the 3 motions (two-sided Wilcoxon, Holm
+    over the methods) and shown with its bootstrap interval; with 3 motions no p can reach 0.05."""
+    fair = "PM (fair budget)"
+    cells_ = [("hsc", "golf"), ("hsc", "run"), ("mocap", "run"), ("mocap", "walk")]
+    err = {fair: [5.0, 6.0, 8.0, 7.0], "SR": [4.0, 5.5, 6.5, 6.0], "1-NN": [6.0, 7.0, 9.0, 6.5]}
+    rows = pd.DataFrame(
+        [
+            dict(protocol="random", source=s, activity=a, n_train=30, seed=seed, name=m, error=e[k])
+            for m, e in err.items()
+            for k, (s, a) in enumerate(cells_)
+            for seed in range(2)
+        ]
+    )
+    motions = {(s, a): a for s, a in cells_}  # hsc run and mocap run: one motion
+    v = budget.across_motions(rows, fair, motions)
+    assert set(v.index) == {"SR", "1-NN"} and (v["n_blocks"] == 3).all()
+    # by hand: motion means (run: the mean of its two cells), fair minus each method
+    d_sr = np.array([5.0 - 4.0, (6.0 + 8.0) / 2 - (5.5 + 6.5) / 2, 7.0 - 6.0])
+    d_nn = np.array([5.0 - 6.0, (6.0 + 8.0) / 2 - (7.0 + 9.0) / 2, 7.0 - 6.5])
+    assert v.loc["SR", "mean_diff"] == pytest.approx(d_sr.mean())
+    assert v.loc["1-NN", "mean_diff"] == pytest.approx(d_nn.mean())
+    assert v.loc["SR", "versus_worse_blocks"] == 3 and v.loc["1-NN", "versus_worse_blocks"] == 1
+    p = [stats.wilcoxon(d_sr).pvalue, stats.wilcoxon(d_nn).pvalue]
+    lo = min(p)
+    holm = [max(2 * lo, x) if x != lo else 2 * lo for x in p]
+    assert v.loc["SR", "p_wilcoxon_holm"] == pytest.approx(min(1.0, holm[0]))
+    assert v.loc["1-NN", "p_wilcoxon_holm"] == pytest.approx(min(1.0, holm[1]))
+    assert v.loc["SR", "diff_ci_low"] <= d_sr.mean() <= v.loc["SR", "diff_ci_high"]
+    lines, reach = budget._motions_markdown(v, fair)
+    assert lines[0].startswith("Across the 3 distinct motions")
+    assert f"| SR | +{d_sr.mean():.2f} [" in "\n".join(lines) and "| 3 of 3 |" in "\n".join(lines)
+    # 3 motions, 2 methods: the smallest two-sided Holm p is 2 * 2 * 2**-3 = 0.5
+    assert reach.startswith(
+        "With 3 motions and Holm over 2 methods the smallest possible p is 0.5: no test"
+    )
 
 
 def test_a_table_pair_without_both_pms_is_refused():

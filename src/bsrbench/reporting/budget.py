@@ -5,8 +5,9 @@ The fair-budget table is layered over the paper protocol's configuration, so its
 headline table's PM, 1-NN and the paper's four baselines. Per cell (activity, N): the mean errors of both PMs, the
 paper's PM, 1-NN and the best of our four baselines; the split R-hat of the fair PM's test error over its chains;
 its CV choice; and whether the fair PM beats the headline PM on these frames (paired t-test over the seeds, Holm
-over the cells). :func:`summary` adds, per PM, the cells better, tied or worse than 1-NN and each baseline
-(:func:`.reconcile.pm_summary`).
+over the cells). Per data source, :func:`.reconcile.pm_summary` adds, per PM, the cells better, tied or worse than
+1-NN and each baseline; :func:`across_motions` asks the question across the distinct motions
+(:mod:`.verdict`, the motion as the unit).
 """
 
 import math
@@ -18,8 +19,9 @@ from ..errors import DataFileError, InputError
 from ..safeload import json_text
 from . import reconcile
 
-#: The paper protocol's variant (random splits, the files' first 600 rows, tuned methods, wrapped error).
-VARIANT = reconcile.BASE
+#: The paper protocol (random splits, tuned methods, wrapped error) on each data set's frames as configured: the
+#: fair-budget study is layered over config/paper.yaml, so its frames are the headline table's.
+VARIANT = {**reconcile.BASE, "frames": None}
 #: The columns the headline table needs of every row, and the fair-budget table (its PM's R-hat and CV choice).
 NEEDED = [*reconcile.NEEDED, "error", "train_error"]
 NEEDED_FAIR = [*NEEDED, "r_hat_test_error", "params"]
@@ -172,8 +174,56 @@ def cells(rows, pm_names, paper, tables=("the fair-budget table", "the headline 
     return c
 
 
-def markdown(c, summaries):
-    """The per-cell table, the summary over cells and the legend."""
+def across_motions(rows, fair, motions):
+    """The fair-budget PM ``fair`` against each other method of ``rows`` with the distinct motions as the unit
+    (:func:`.verdict.verdict`: the mean of each motion's cells, both sources together when there are two):
+    per method the mean difference (fair PM minus it) with its bootstrap interval over the motions, the motions
+    where the fair PM is worse, and the two-sided Wilcoxon p, Holm-adjusted over the methods. ``motions``:
+    {(source, activity): motion} (:func:`bsrbench.datasets.motion_map`)."""
+    from .verdict import ALL, verdict
+
+    v = verdict(rows.assign(method=rows["name"]), motions=motions, pm=fair)
+    v = v[v["unit"] == "motion"]
+    scope = ALL if ALL in set(v["scope"]) else v["scope"].iloc[0]
+    return v[(v["scope"] == scope) & (v["versus"] == fair)].set_index("method")
+
+
+def _motions_markdown(v, fair):
+    """The table of :func:`across_motions` and what its motions can show."""
+    from .verdict import p_text, smallest_p
+
+    b = int(v["n_blocks"].iloc[0])
+    floor = smallest_p(b, len(v), one_sided=False)
+    lines = [
+        f"Across the {b} distinct motions (each the mean of its cells; {fair} minus each method):",
+        "",
+        "| method | mean difference [95% bootstrap interval] | motions where the fair PM is worse | Wilcoxon p "
+        "(Holm) |",
+        "|---|---:|---:|---:|",
+    ]
+    for m, r in v.sort_values("mean_diff").iterrows():
+        ci = (
+            f" [{r['diff_ci_low']:+.2f}, {r['diff_ci_high']:+.2f}]"
+            if np.isfinite(r["diff_ci_low"])
+            else ""
+        )
+        lines.append(
+            f"| {m} | {r['mean_diff']:+.2f}{ci} | {int(r['versus_worse_blocks'])} of {b} "
+            f"| {p_text(r['p_wilcoxon_holm'])} |"
+        )
+    reach = (
+        f"With {b} motions and Holm over {len(v)} methods the smallest possible p is {floor:.3g}: no test across "
+        "motions can reach p < 0.05, and no claim beyond these frames is made; the intervals say what the "
+        "motions can."
+        if floor >= 0.05
+        else f"With {b} motions and Holm over {len(v)} methods the smallest possible p is {floor:.3g}."
+    )
+    return lines, reach
+
+
+def markdown(c, summaries, motions=None):
+    """The per-cell table, the summary over cells per data source (``summaries``: {source: pm_summary}, or one
+    summary list), the comparison across motions (``motions``: :func:`across_motions`, or None) and the legend."""
     lines = [
         "| cell | PM | PM (fair budget) | train | paper's PM | 1-NN | best baseline | split R-hat (median, max) "
         "| CV choice | fair vs PM |",
@@ -182,14 +232,22 @@ def markdown(c, summaries):
     for r in c.itertuples():
         rh = f"{r.r_hat_median:.3f}, {r.r_hat_max:.3f}" if np.isfinite(r.r_hat_median) else "--"
         lines.append(
-            f"| {r.activity.replace('_', ' ')} N = {r.n_train} | {r.pm:.2f} | {r.fair:.2f} | {r.fair_train:.2f} "
+            f"| {r.source} {r.activity.replace('_', ' ')} N = {r.n_train} | {r.pm:.2f} | {r.fair:.2f} | {r.fair_train:.2f} "
             f"| {r.paper_pm:.2f} | {r.nn:.2f} | {r.best_error:.2f} ({r.best}) | {rh} | {r.choice} "
             f"| {r.fair_vs_pm} |"
         )
     counts = c["fair_vs_pm"].value_counts()
+    if not isinstance(summaries, dict):
+        summaries = {"": summaries}
+    for source, summary in summaries.items():
+        lines += [""] + ([f"{source}:", ""] if len(summaries) > 1 else [])
+        lines += [reconcile.pm_markdown(summary, VARIANT, legend=False)]
+    reach = ""
+    if motions is not None and len(motions):
+        fair = str(motions["versus"].iloc[0])
+        table, reach = _motions_markdown(motions, fair)
+        lines += [""] + table
     lines += [
-        "",
-        reconcile.pm_markdown(summaries, VARIANT, legend=False),
         "",
         f"Mean errors over the 10 seeds (degrees) on the paper protocol's splits. PM: the headline PM (1 chain, 10 "
         f"prediction sweeps, CV at 300 sweeps); PM (fair budget): 4 chains, 100 prediction sweeps, CV at the "
@@ -200,21 +258,27 @@ def markdown(c, summaries):
         f"seeds on these frames, Holm over the {len(c)} cells, p < 0.05 "
         f"(better {counts.get('better', 0)}, tied {counts.get('tied', 0)}, worse {counts.get('worse', 0)}). "
         "Summary rows: the cells where each PM is better / tied / worse than 1-NN and each baseline (paired "
-        "t-test over the seeds, Holm over the PM's comparisons in the cell). With 4 motions no test across "
-        "motions can reach p < 0.05 (the smallest two-sided Wilcoxon p is 0.125): no claim beyond these frames. "
+        f"t-test over the seeds, Holm over the PM's comparisons in the cell), per data source. {reach} "
         "Generated by `python -m bsrbench.reporting.published budget reports/published/paper-pmfair.csv`.",
     ]
     return "\n".join(lines)
 
 
 def published_parts(table, beside, paper):
-    """``(cells, summaries)`` of the published fair-budget ``table`` beside the headline table ``beside``:
-    :func:`cells` and :func:`.reconcile.pm_summary` (each PM against 1-NN and the baselines)."""
+    """``(cells, summaries, motions)`` of the published fair-budget ``table`` beside the headline table
+    ``beside``: :func:`cells`, {source: :func:`.reconcile.pm_summary`} (each PM against 1-NN and the baselines on
+    the cells of the source) and :func:`across_motions`."""
+    from ..datasets import motion_map
+
     df, config, datasets, book = published_inputs(table, beside, paper)
     rows, pm = reconcile.pm_rows(df, config, datasets, VARIANT)
     if not len(rows):
-        raise InputError(f"{table}: no PM rows on the paper protocol's frames")
-    return cells(rows, pm, book, (table, beside)), reconcile.pm_summary(rows, pm, book)
+        raise InputError(f"{table}: no PM rows on the paper protocol's splits")
+    c = cells(rows, pm, book, (table, beside))
+    rows = rows.merge(c[["source", "activity", "n_train"]], on=["source", "activity", "n_train"])
+    summaries = {s: reconcile.pm_summary(g, pm, book) for s, g in rows.groupby("source", sort=True)}
+    (fair,) = [n for n in pm if n != reconcile.PM]
+    return c, summaries, across_motions(rows, fair, motion_map(datasets))
 
 
 def published_markdown(table, beside, paper):

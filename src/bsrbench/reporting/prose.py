@@ -95,16 +95,15 @@ class Book:
 
     @cached_property
     def pmfair(self):
-        """``(cells, {PM name: summary})`` of PM with a fair budget beside the headline PM
+        """``(cells, {source: summaries}, across motions)`` of PM with a fair budget beside the headline PM
         (:func:`.budget.published_parts`)."""
         from .budget import published_parts
 
-        c, summaries = published_parts(
+        return published_parts(
             self.path("paper-pmfair.csv"),
             self.path("paper.csv"),
             self.root / "resources" / "paper-tables.csv",
         )
-        return c, {r["method"]: r for r in summaries}
 
     @cached_property
     def part_rows(self):
@@ -933,61 +932,71 @@ def _(book):
 
 
 # ----------------------------------------------------------------------------------------- paper-pmfair.csv
-def _fair(book):
-    """The fair-budget PM's summary (the PM of paper-pmfair.csv, not the headline PM)."""
+def _pmfair(book, source, pm=None):
+    """The summary of PM ``pm`` (default: the fair-budget PM, not the headline one) on ``source``'s cells."""
     from .reconcile import PM
 
-    (name,) = [n for n in book.pmfair[1] if n != PM]
-    return book.pmfair[1][name]
+    by_name = {r["method"]: r for r in book.pmfair[1][source]}
+    (fair,) = [n for n in by_name if n != PM]
+    return by_name[pm or fair]
 
 
-@claim("paper_pmfair.error.PM")
-def _(book):
-    from .reconcile import PM
-
-    return fmt(book.pmfair[1][PM]["error"])
-
-
-@claim("paper_pmfair.error.fair")
-def _(book):
-    return fmt(_fair(book)["error"])
-
-
-@claim("paper_pmfair.vs_pm")
-def _(book):
+def _pmfair_cells(book, source):
     c = book.pmfair[0]
-    return count((c["fair_vs_pm"] == "better").sum(), len(c))
+    return c[c["source"] == source]
 
 
-@claim("paper_pmfair.ratio")
+_SOURCES = ("hsc", "mocap")
+claims("paper_pmfair.{}.error.PM", _SOURCES, lambda book, s: fmt(_pmfair(book, s, "PM")["error"]))
+claims("paper_pmfair.{}.error.fair", _SOURCES, lambda book, s: fmt(_pmfair(book, s)["error"]))
+claims(
+    "paper_pmfair.{}.ratio",
+    _SOURCES,
+    lambda book, s: fmt(float(np.median(_pmfair(book, s)["ratios"]))),
+)
+claims(
+    "paper_pmfair.{}.vs_pm",
+    _SOURCES,
+    lambda book, s: count(
+        (_pmfair_cells(book, s)["fair_vs_pm"] == "better").sum(), len(_pmfair_cells(book, s))
+    ),
+)
+claims(
+    "paper_pmfair.{}.b1",
+    _SOURCES,
+    lambda book, s: count(
+        _pmfair_cells(book, s)["choice"].str.endswith(", b 1").sum(), len(_pmfair_cells(book, s))
+    ),
+)
+claims(
+    "paper_pmfair.{}.beats_nn",
+    _SOURCES,
+    lambda book, s: count(_pmfair(book, s)["counts"]["1-NN"][0], _pmfair(book, s)["cells"]),
+)
+claims(
+    "paper_pmfair.{}.worse_sr",
+    _SOURCES,
+    lambda book, s: count(_pmfair(book, s)["counts"]["SR"][2], _pmfair(book, s)["cells"]),
+)
+claims(
+    "paper_pmfair.{}.converged",
+    _SOURCES,
+    lambda book, s: count(
+        _pmfair_cells(book, s)["converged"].sum(), _pmfair_cells(book, s)["splits"].sum()
+    ),
+)
+
+
+@claim("paper_pmfair.motions")
 def _(book):
-    return fmt(float(np.median(_fair(book)["ratios"])))
+    return str(int(book.pmfair[2]["n_blocks"].iloc[0]))
 
 
-@claim("paper_pmfair.b1")
+@claim("paper_pmfair.motions_vs_sr")
 def _(book):
-    c = book.pmfair[0]
-    return count(c["choice"].str.endswith(", b 1").sum(), len(c))
-
-
-@claim("paper_pmfair.beats_nn")
-def _(book):
-    from .reconcile import NN
-
-    s = _fair(book)
-    return count(s["counts"][NN][0], s["cells"])
-
-
-@claim("paper_pmfair.worse_sr")
-def _(book):
-    s = _fair(book)
-    return count(s["counts"]["SR"][2], s["cells"])
-
-
-@claim("paper_pmfair.converged")
-def _(book):
-    c = book.pmfair[0]
-    return count(c["converged"].sum(), c["splits"].sum())
+    """The fair PM minus SR over the motions, with its bootstrap interval."""
+    r = book.pmfair[2].loc["SR"]
+    return f"{r['mean_diff']:+.2f} [{r['diff_ci_low']:+.2f}, {r['diff_ci_high']:+.2f}]"
 
 
 # ----------------------------------------------------------------------------------------- reconcile-pm.csv

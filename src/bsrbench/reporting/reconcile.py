@@ -241,7 +241,8 @@ def pm_rows(df, config, datasets, variant):
     rows["frames"] = [
         frames_label(datasets[s][a]) for s, a in zip(rows["source"], rows["activity"])
     ]
-    rows = rows[rows["frames"] == variant["frames"]]
+    if variant["frames"] is not None:  # None: each data set's configured frames
+        rows = rows[rows["frames"] == variant["frames"]]
     rows["name"] = rows["method"].map(label)
     pm = sorted({label[m] for m in label if names.get(m) == PM})
     return rows if set(rows["name"]) & set(pm) else rows.iloc[:0], pm
