@@ -69,6 +69,53 @@ def test_a_module_planted_in_the_working_directory_is_refused_and_never_runs(tmp
     assert marker.exists()
 
 
+def test_a_relative_pythonpath_entry_does_not_vouch_for_the_working_directory(
+    tmp_path, monkeypatch
+):
+    """Python resolved a relative PYTHONPATH entry against the directory it started in, which the check cannot
+    know: ``PYTHONPATH=.`` does not make the working directory an installation."""
+    marker = tmp_path / "marker"
+    (tmp_path / "planted_rel.py").write_text(ESTIMATOR_SOURCE.format(marker=str(marker)))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    for entry in (".", "./", "sub/.."):
+        monkeypatch.setenv("PYTHONPATH", entry)
+        with pytest.raises(InputError) as err:
+            load_estimator_class("planted_rel:Planted")
+        assert "which no installation put on the path" in str(err.value), err.value
+        assert "a directory on PYTHONPATH (an absolute path)" in str(err.value)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("user_site", [False, True])
+def test_the_user_site_counts_only_where_this_interpreter_reads_it(
+    tmp_path, monkeypatch, user_site
+):
+    """A ``.pth`` file of the user's site-packages adds its directories only where Python reads the user site (not
+    in a virtual environment): where it does not, those directories are no installation."""
+    from bsrbench import estimators
+
+    marker = tmp_path / "marker"
+    user = tmp_path / "user-site"
+    code = tmp_path / "code"
+    user.mkdir()
+    code.mkdir()
+    (user / "mine.pth").write_text(f"{code}\n")
+    (code / "planted_user.py").write_text(ESTIMATOR_SOURCE.format(marker=str(marker)))
+    monkeypatch.setattr(estimators.site, "ENABLE_USER_SITE", user_site)
+    monkeypatch.setattr(estimators.site, "getusersitepackages", lambda: str(user))
+    monkeypatch.syspath_prepend(str(code))
+    monkeypatch.delenv("PYTHONPATH", raising=False)
+    assert (code.resolve() in estimators.installed_roots()) is user_site
+    if user_site:
+        assert load_estimator_class("planted_user:Planted").__name__ == "Planted"
+        assert marker.exists()
+    else:
+        with pytest.raises(InputError, match=f"is found in {code}, which no installation"):
+            load_estimator_class("planted_user:Planted")
+        assert not marker.exists()
+
+
 @pytest.mark.parametrize(
     "path", ["own_prog.__main__:Planted", "own_prog.__init__:Planted", "PIL.__main__:X"]
 )

@@ -67,11 +67,13 @@ def _resolved(path):
 
 
 def installed_roots():
-    """The directories a top-level estimator module may come from: the interpreter's site-packages (and the user's),
-    the directories their ``.pth`` files add (editable installs such as bsrbench's own ``src/``), the entries of
-    ``PYTHONPATH`` (the user's explicit choice) and the directory bsrbench itself was imported from. Not the
-    working directory or a script's directory, which Python puts on the path without anyone installing them."""
-    sites = [*site.getsitepackages(), site.getusersitepackages()]
+    """The directories a top-level estimator module may come from: the interpreter's site-packages (and the user's
+    when this interpreter reads it: not in a virtual environment), the directories their ``.pth`` files add
+    (editable installs such as bsrbench's own ``src/``), the absolute entries of ``PYTHONPATH`` (the user's explicit
+    choice; a relative one was resolved against the directory Python started in, which may not be this one) and
+    the directory bsrbench itself was imported from. Not the working directory or a script's directory, which
+    Python puts on the path without anyone installing them."""
+    sites = [*site.getsitepackages(), site.getusersitepackages() if site.ENABLE_USER_SITE else None]
     sites += [sysconfig.get_path(k) for k in ("purelib", "platlib")]
     roots = {Path(__file__).resolve().parents[1]}
     for d in filter(None, sites):
@@ -91,7 +93,7 @@ def installed_roots():
                     if entry is not None:
                         roots.add(entry)
     for entry in os.environ.get("PYTHONPATH", "").split(os.pathsep):
-        if entry and _resolved(entry) is not None:
+        if os.path.isabs(entry) and _resolved(entry) is not None:
             roots.add(_resolved(entry))
     return roots
 
@@ -115,7 +117,7 @@ def _check_installed(path, name, spec):
     raise InputError(
         f"estimator {path!r}: module {name!r} is found in {where}, which no installation put on the path (the "
         f"working directory or a script's directory); expected {_EXPECTED} of an installed package, of a "
-        f"directory on PYTHONPATH or of bsrbench.models"
+        f"directory on PYTHONPATH (an absolute path) or of bsrbench.models"
     )
 
 
