@@ -190,6 +190,27 @@ def test_ablation_claims_agree_with_a_hand_computation():
     assert prose.CLAIMS["goal.below.PMK8"](BOOK) == str(int((g["PMK8"] < g["NN1"]).sum()))
 
 
+def test_fair_budget_claims_agree_with_a_hand_computation():
+    import json
+
+    f = pd.read_csv(PUBLISHED / "paper-pmfair.csv")
+    p = pd.read_csv(PUBLISHED / "paper.csv")
+    for source in ("hsc", "mocap"):
+        fs = f[f["source"] == source]
+        assert (
+            prose.CLAIMS[f"paper_pmfair.{source}.error.fair"](BOOK) == f"{fs['error'].mean():.2f}"
+        )
+        pm = p[(p["source"] == source) & (p["method"] == "PM") & (p["protocol"] == "random")]
+        assert prose.CLAIMS[f"paper_pmfair.{source}.error.PM"](BOOK) == f"{pm['error'].mean():.2f}"
+        ok = int((fs["r_hat_test_error"] <= 1.01).sum())
+        assert prose.CLAIMS[f"paper_pmfair.{source}.converged"](BOOK) == f"{ok} of the {len(fs)}"
+        first = fs.sort_values("seed").groupby(["activity", "n_train"])["params"].first()
+        b1 = sum(json.loads(x)["b_xy"] == 1 for x in first)
+        assert prose.CLAIMS[f"paper_pmfair.{source}.b1"](BOOK) == f"{b1} of the {len(first)}"
+    # the motions are the activities' names here: hsc and mocap share run and michael_jackson
+    assert prose.CLAIMS["paper_pmfair.motions"](BOOK) == str(f["activity"].nunique())
+
+
 def test_the_command_exits_0_when_fresh(capsys):
     assert main(["prose"]) == 0
     assert "; 0 differ" in capsys.readouterr().err
