@@ -834,3 +834,140 @@ def test_verify_names_a_referenced_datasets_section_of_the_wrong_shape(
     _use_configfiles(study, ["config/evil.yaml"])
     assert main(["verify", str(study)]) == 2
     assert _one_error_line(capsys) == f"error: {folder / 'evil.yaml'}: {words}"
+
+
+def _files(folder):
+    """{name: (bytes, mode, is a link)} of the files of ``folder``: what a refused merge must leave as it is."""
+    return {
+        p.name: (p.read_bytes(), p.lstat().st_mode, p.is_symlink())
+        for p in sorted(folder.iterdir())
+        if p.is_file() or p.is_symlink()
+    }
+
+
+def test_merge_refuses_a_destination_of_another_study_before_writing(tmp_path, capsys):
+    """The break test's case: a part of the fair-budget study merged onto the headline table paper.csv."""
+    published = ROOT.parent / "reports" / "published"
+    part = tmp_path / "parts" / "paper-pmfair-mocap.csv"
+    part.parent.mkdir()
+    dest = tmp_path / "paper.csv"
+    for src, dst in ((published / "parts" / part.name, part), (published / "paper.csv", dest)):
+        shutil.copy(src, dst)
+        shutil.copy(freshness.provenance_path(src), freshness.provenance_path(dst))
+    before = _files(tmp_path)
+    assert main(["merge", str(part), str(dest)]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {dest}: is a table of another study (configfiles ['config/paper.yaml']), the parts are of "
+        "configfiles ['config/paper.yaml', 'config/paper-pmfair.yaml']; expected a new destination or a table "
+        "of the parts' study (the merge would replace its rows by the parts')"
+    )
+    assert _files(tmp_path) == before
+
+
+def test_merge_refuses_a_destination_without_provenance_of_another_study(study, tmp_path, capsys):
+    dest = tmp_path / "other.csv"  # no provenance: its study is config/other.yaml
+    pd.read_csv(study).to_csv(dest, index=False)
+    before = _files(tmp_path)
+    assert main(["merge", str(study), str(dest)]) == 2
+    assert _one_error_line(capsys).startswith(
+        f"error: {dest}: is a table of another study (configfiles ['config/other.yaml']), the parts are of "
+        "configfiles ['config/ci.yaml']; "
+    )
+    assert _files(tmp_path) == before
+
+
+@pytest.mark.parametrize("which", ["table", "provenance"])
+def test_merge_refuses_a_symlinked_destination_before_writing(study, tmp_path, capsys, which):
+    part = _write_part(pd.read_csv(study).assign(activity="run"), tmp_path / "part.csv")
+    dest = study
+    target = dest if which == "table" else freshness.provenance_path(dest)
+    real = tmp_path / ("real" + target.suffix)
+    shutil.move(target, real)
+    target.symlink_to(real)
+    before, outside = _files(study.parent), _files(tmp_path)
+    assert main(["merge", str(study), str(part), str(dest)]) == 2
+    assert _one_error_line(capsys) == (
+        f"error: {target}: is a symbolic link (to {str(real)!r}); expected a regular file (the merge would "
+        "replace the link by a copy): name the file it points to"
+    )
+    assert target.is_symlink() and _files(study.parent) == before and _files(tmp_path) == outside
+
+
+@pytest.mark.parametrize("which", ["table", "provenance"])
+def test_merge_refuses_a_read_only_destination_before_writing(study, tmp_path, capsys, which):
+    part = _write_part(pd.read_csv(study).assign(activity="run"), tmp_path / "part.csv")
+    target = study if which == "table" else freshness.provenance_path(study)
+    target.chmod(0o444)
+    before = _files(study.parent)
+    try:
+        assert main(["merge", str(study), str(part), str(study)]) == 2
+        assert _one_error_line(capsys) == (
+            f"error: {target}: is read-only (mode 444); expected a writable file (the merge would replace "
+            "it): make it writable first"
+        )
+        assert _files(study.parent) == before
+    finally:
+        target.chmod(0o644)
+
+
+@pytest.mark.parametrize(
+    "column, value, shown, expected",
+    [
+        (
+            "error",
+            float("nan"),
+            "nan",
+            "a finite number in [0, 180] (the mean wrapped angle error in degrees)",
+        ),
+        (
+            "error",
+            -1.5,
+            "-1.5",
+            "a finite number in [0, 180] (the mean wrapped angle error in degrees)",
+        ),
+        (
+            "error",
+            1e300,
+            "1e+300",
+            "a finite number in [0, 180] (the mean wrapped angle error in degrees)",
+        ),
+        (
+            "error",
+            "abc",
+            "'abc'",
+            "a finite number in [0, 180] (the mean wrapped angle error in degrees)",
+        ),
+        (
+            "written_at",
+            "yesterday",
+            "'yesterday'",
+            "an ISO 8601 date-time (e.g. 2024-05-01T12:00:00+00:00: when the row was written)",
+        ),
+    ],
+)
+def test_merge_refuses_a_part_row_with_a_bad_error_or_written_at(
+    study, tmp_path, capsys, column, value, shown, expected
+):
+    df = pd.read_csv(study)
+    if column == "error" and isinstance(value, str):
+        df["error"] = df["error"].astype(object)
+    df.loc[df.index[2], column] = value
+    part = _write_part(df, tmp_path / "part.csv")
+    dest = tmp_path / "published" / "merged.csv"
+    assert main(["merge", str(part), str(dest)]) == 2
+    assert (
+        _one_error_line(capsys)
+        == f"error: {part} line 4: column {column!r} is {shown}; expected {expected}"
+    )
+    assert not dest.exists() and not freshness.provenance_path(dest).exists()
+
+
+def test_merge_takes_errors_of_0_and_180_degrees_and_a_missing_written_at(study, tmp_path):
+    df = pd.read_csv(study)
+    df.loc[df.index[0], "error"] = 0.0
+    df.loc[df.index[1], "error"] = 180.0
+    df.loc[df.index[2], "written_at"] = None
+    part = _write_part(df, tmp_path / "part.csv")
+    dest = tmp_path / "merged.csv"
+    assert main(["merge", str(part), str(dest)]) == 0
+    assert len(pd.read_csv(dest)) == len(df)

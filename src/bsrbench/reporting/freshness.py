@@ -825,6 +825,7 @@ def read_part(part):
         raise DataFileError(
             part, "has no rows (only a header); expected a published table of result rows"
         )
+    _check_part_values(part, df)
     listed = prov.get("methods") or {}
     for method, rows in df.groupby("method", sort=True):
         have = sorted(set(rows["code_fingerprint"].dropna().astype(str)))
@@ -837,6 +838,58 @@ def read_part(part):
                 "written together (publish it again)"
             )
     return df, prov, configfiles(part, prov)
+
+
+#: The largest mean angle error of a row (degrees): a wrapped angle error is at most 180.
+MAX_ERROR = 180.0
+
+
+def _check_part_values(part, df):
+    """Refuse a part whose ``error`` is not a finite number in [0, :data:`MAX_ERROR`] (a mean wrapped angle error
+    in degrees) or whose ``written_at`` (when present) is not an ISO 8601 date-time: InputError naming the part's
+    line, the column, the value and what was expected (the merge keeps the newest row by ``written_at``)."""
+    error = pd.to_numeric(df["error"], errors="coerce").to_numpy(dtype=float)
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~(np.isfinite(error) & (error >= 0) & (error <= MAX_ERROR)))
+    if len(bad):
+        raise InputError(
+            f"{_line(part, bad[0])}: column 'error' is {_plain(df['error'].iloc[bad[0]])!r}; expected a finite "
+            f"number in [0, {MAX_ERROR:g}] (the mean wrapped angle error in degrees)"
+        )
+    if "written_at" not in df.columns:
+        return
+    for i, v in enumerate(df["written_at"]):
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            continue
+        try:
+            ok = isinstance(v, str) and not pd.isna(pd.to_datetime(v, utc=True, format="ISO8601"))
+        except (ValueError, TypeError, OverflowError):
+            ok = False
+        if not ok:
+            raise InputError(
+                f"{_line(part, i)}: column 'written_at' is {_plain(v)!r}; expected an ISO 8601 date-time "
+                "(e.g. 2024-05-01T12:00:00+00:00: when the row was written)"
+            )
+
+
+def _check_destination(dest, files):
+    """Refuse ``dest`` (the merged table) before anything is written: a symbolic link or a read-only file, of the
+    table or of its provenance (:func:`.headline.check_update_target`), or an existing table of another study (its
+    provenance's ``configfiles`` other than the parts' ``files``), which the merge would replace by the parts'
+    rows. DataFileError naming the file."""
+    from .headline import check_update_target
+
+    for p in (Path(dest), provenance_path(dest)):
+        check_update_target(p, "the merge")
+    if Path(dest).is_file():  # a folder in the way: refused when written
+        own = configfiles(dest, read_provenance(dest))
+        if own != files:
+            raise DataFileError(
+                dest,
+                f"is a table of another study (configfiles {own}), the parts are of configfiles {files}; "
+                "expected a new destination or a table of the parts' study (the merge would replace its rows "
+                "by the parts')",
+            )
 
 
 def merge(parts, dest):
@@ -866,6 +919,7 @@ def merge(parts, dest):
         d["_part"] = str(p)
         frames.append(d)
         provs.append(prov)
+    _check_destination(dest, files)
     df = pd.concat(frames, ignore_index=True)
     df["_age"] = pd.to_datetime(df["written_at"], utc=True, errors="coerce", format="ISO8601")
     df = df.sort_values("_age", kind="mergesort", na_position="first")

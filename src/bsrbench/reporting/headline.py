@@ -292,15 +292,16 @@ def notes_markdown(df, *, labels, protocol="random", share=0.5):
     return "\n".join(out) if out else "- No mean NLPD is dominated by one split."
 
 
-def check_update_target(path):
+def check_update_target(path, what="the update"):
     """Refuse ``path`` as a file that ``--update`` rewrites, before anything is written: DataFileError naming it
     if it is a symbolic link (the atomic rename that writes it would put a regular file in the link's place) or a
-    read-only file (the rename would replace it all the same)."""
+    read-only file (the rename would replace it all the same). ``what``: what would replace it, as the message
+    says (e.g. "the merge")."""
     path = Path(path)
     if path.is_symlink():
         raise DataFileError(
             path,
-            f"is a symbolic link (to {os.readlink(path)!r}); expected a regular file (the update would replace "
+            f"is a symbolic link (to {os.readlink(path)!r}); expected a regular file ({what} would replace "
             "the link by a copy): name the file it points to",
         )
     if not path.is_file():
@@ -309,7 +310,7 @@ def check_update_target(path):
     if not os.access(path, os.W_OK) or not mode & stat.S_IWUSR:
         raise DataFileError(
             path,
-            f"is read-only (mode {stat.S_IMODE(mode):o}); expected a writable file (the update would replace "
+            f"is read-only (mode {stat.S_IMODE(mode):o}); expected a writable file ({what} would replace "
             "it): make it writable first",
         )
 
