@@ -256,3 +256,86 @@ def test_a_row_of_a_data_set_outside_the_study_is_named_by_line(tmp_path, capsys
         f"{table} line 2: columns 'source', 'activity' are 'hsc', 'acrobatics_late'; expected a data set of the "
         "study's configuration (the configuration files the table's provenance names)"
     )
+
+
+def _beside(tmp_path, change):
+    """A copy of the published headline table, with its provenance, changed by ``change(df) -> df``."""
+    folder = tmp_path / "headline"
+    folder.mkdir()
+    shutil.copy(PUBLISHED / "paper.provenance.json", folder)
+    change(pd.read_csv(PUBLISHED / "paper.csv")).to_csv(folder / "paper.csv", index=False)
+    return folder / "paper.csv"
+
+
+def _drop(methods, source=None, activity=None, n_train=None):
+    """A change that drops the rows of ``methods`` (the headline table's names) in the cells given."""
+
+    def change(df):
+        hit = df["method"].isin(methods)
+        for col, v in (("source", source), ("activity", activity), ("n_train", n_train)):
+            if v is not None:
+                hit &= df[col] == v
+        return df[~hit]
+
+    return change
+
+
+def test_a_fair_cell_over_other_seeds_than_the_headline_pms_is_refused(tmp_path, capsys):
+    table = _table(tmp_path, lambda df: df[df["seed"] <= 2])
+    beside = PUBLISHED / "paper.csv"
+    assert _budget_error(capsys, table, "--beside", beside) == (
+        f"{table} beside {beside}: the cell (source 'hsc', activity 'acrobatics', N 30) has the seeds "
+        f"[0, 1, 2] of PM (fair budget) in {table} and {list(range(10))} of PM in {beside}; expected the same "
+        "seeds (the means and the paired test are over the cell's seeds)"
+    )
+
+
+def test_the_caption_states_the_number_of_seeds_it_averages():
+    rows = pd.DataFrame(
+        _rows("PM", 30, [7.0, 7.3, 6.8])
+        + _rows(
+            "PM (fair budget)",
+            30,
+            [5.0, 5.2, 4.9],
+            r_hat_test_error=1.0,
+            train_error=1.0,
+            params='{"n_atoms": 64, "n_neighbors": 5, "b_xy": 1.0}',
+        )
+    )
+    text = budget.markdown(budget.cells(rows, ["PM", "PM (fair budget)"], PAPER), [])
+    assert "Mean errors over the 3 seeds (degrees)" in text and "10 seeds" not in text
+
+
+@pytest.mark.parametrize(
+    "change, cell, missing",
+    [
+        (_drop(["PM"], "mocap", "run", 60), "(source 'mocap', activity 'run', N 60)", ["PM"]),
+        (
+            _drop(["PM", "NN1", "RVM", "TGP", "SR", "DDL"], "mocap"),
+            "(source 'mocap', activity 'kick_soccer_ball', N 30)",
+            ["PM", "1-NN", "RVM", "TGP", "SR", "DDL"],
+        ),
+        (_drop(["NN1"]), "(source 'hsc', activity 'acrobatics', N 30)", ["1-NN"]),
+        (
+            _drop(["RVM", "TGP", "SR", "DDL"]),
+            "(source 'hsc', activity 'acrobatics', N 30)",
+            ["RVM", "TGP", "SR", "DDL"],
+        ),
+        (_drop(["NN1"], "hsc", "golf", 60), "(source 'hsc', activity 'golf', N 60)", ["1-NN"]),
+    ],
+    ids=["PM in one cell", "a whole source", "1-NN", "the baselines", "1-NN in one cell"],
+)
+def test_a_headline_table_lacking_a_method_in_a_fair_cell_is_refused(
+    tmp_path, capsys, change, cell, missing
+):
+    table = PUBLISHED / "paper-pmfair.csv"
+    beside = _beside(tmp_path, change)
+    docs = tmp_path / "results.md"
+    shutil.copy(ROOT / "docs" / "results.md", docs)
+    expected = (
+        f"{beside}: the cell {cell} of {table} lacks method(s) {missing}; expected the headline table to hold "
+        "PM, 1-NN, RVM, TGP, SR, DDL in every cell of the fair-budget table"
+    )
+    assert _budget_error(capsys, table, "--beside", beside) == expected
+    assert _budget_error(capsys, table, "--beside", beside, "--update", docs) == expected
+    assert docs.read_text() == (ROOT / "docs" / "results.md").read_text()

@@ -110,6 +110,48 @@ def _choice(params, where="column 'params'"):
     return f"K {p['n_atoms']}, j {p['n_neighbors']}, b {p['b_xy']:g}"
 
 
+#: The methods the headline table must hold in every cell of the fair-budget table, as :mod:`.reconcile` names
+#: them: its PM, 1-NN and the paper's four baselines (the columns and the summary rows compare them).
+BESIDE = (reconcile.PM, reconcile.NN, *reconcile.BASELINES)
+
+
+def _cell_text(source, activity, n):
+    return f"(source {source!r}, activity {activity!r}, N {int(n)})"
+
+
+def check_beside(rows, pm_names, tables=("the fair-budget table", "the headline table")):
+    """Refuse a fair-budget table whose cells the headline table cannot be set beside: InputError naming the
+    headline table, the cell (source, activity, N) and the methods of :data:`BESIDE` it lacks there, or both
+    tables, the cell and both seed lists when the fair PM's seeds differ from the headline PM's (means and pairs
+    over other seeds are no comparison). ``rows``: :func:`.reconcile.pm_rows` of both tables; ``tables``: the
+    fair-budget and the headline table, as messages name them. A headline table without any PM is left to
+    :func:`cells`, which names the PMs found."""
+    fair = [n for n in pm_names if n != reconcile.PM]
+    if reconcile.PM not in pm_names or len(fair) != 1:
+        return
+    (fair,) = fair
+    keys = ["source", "activity", "n_train"]
+    for (source, act, n), g in rows.groupby(keys, sort=True):
+        if not (g["name"] == fair).any():
+            continue
+        missing = [m for m in BESIDE if m not in set(g["name"])]
+        if missing:
+            raise InputError(
+                f"{tables[1]}: the cell {_cell_text(source, act, n)} of {tables[0]} lacks method(s) "
+                f"{missing}; expected the headline table to hold {', '.join(BESIDE)} in every cell of the "
+                "fair-budget table"
+            )
+        seeds = [
+            sorted(int(s) for s in set(g.loc[g["name"] == m, "seed"])) for m in (fair, reconcile.PM)
+        ]
+        if seeds[0] != seeds[1]:
+            raise InputError(
+                f"{tables[0]} beside {tables[1]}: the cell {_cell_text(source, act, n)} has the seeds "
+                f"{seeds[0]} of {fair} in {tables[0]} and {seeds[1]} of {reconcile.PM} in {tables[1]}; "
+                "expected the same seeds (the means and the paired test are over the cell's seeds)"
+            )
+
+
 def cells(rows, pm_names, paper, tables=("the fair-budget table", "the headline table")):
     """One row per cell: the mean errors (degrees), the fair PM's split R-hat (median and largest over the seeds)
     and CV choice, and the paired comparison of the fair and headline PMs (``fair_vs_pm``: better / tied /
@@ -156,6 +198,7 @@ def cells(rows, pm_names, paper, tables=("the fair-budget table", "the headline 
                 "r_hat_max": float(r_hat.max()) if len(r_hat) else np.nan,
                 "converged": int((r_hat <= 1.01).sum()),
                 "splits": len(own),
+                "seeds": int(own["seed"].nunique()),
                 "choice": _choice(first),
                 "diff": res["mean_diff"],
                 "p": res["p_paired_t"],
@@ -247,9 +290,17 @@ def markdown(c, summaries, motions=None):
         fair = str(motions["versus"].iloc[0])
         table, reach = _motions_markdown(motions, fair)
         lines += [""] + table
+    seeds = sorted(set(c["seeds"])) if "seeds" in c else []
+    over = (
+        f"the {seeds[0]} seeds"
+        if len(seeds) == 1
+        else f"the seeds ({seeds[0]} to {seeds[-1]} per cell)"
+        if seeds
+        else "the seeds"
+    )
     lines += [
         "",
-        f"Mean errors over the 10 seeds (degrees) on the paper protocol's splits. PM: the headline PM (1 chain, 10 "
+        f"Mean errors over {over} (degrees) on the paper protocol's splits. PM: the headline PM (1 chain, 10 "
         f"prediction sweeps, CV at 300 sweeps); PM (fair budget): 4 chains, 100 prediction sweeps, CV at the "
         f"final 1200 sweeps over K, j and the noise prior's rate b (config/paper-pmfair.yaml); train: its error "
         f"on the training frames. Best baseline: the lowest of our RVM, TGP, SR and DDL. Split R-hat of the fair "
@@ -274,6 +325,7 @@ def published_parts(table, beside, paper):
     rows, pm = reconcile.pm_rows(df, config, datasets, VARIANT)
     if not len(rows):
         raise InputError(f"{table}: no PM rows on the paper protocol's splits")
+    check_beside(rows, pm, (table, beside))
     c = cells(rows, pm, book, (table, beside))
     rows = rows.merge(c[["source", "activity", "n_train"]], on=["source", "activity", "n_train"])
     summaries = {s: reconcile.pm_summary(g, pm, book) for s, g in rows.groupby("source", sort=True)}
