@@ -4,16 +4,32 @@ import sys
 
 from snakemake.utils import min_version
 
-# Python's path without this folder and the working directory (Snakemake puts the Snakefile's folder first), unless
-# PYTHONPATH names them: a package planted there (./sklearn/, ./bsrbench/) would shadow an installed one and run
-# when imported. Jobs run Python with -P for the same reason.
-_here = {os.path.realpath(workflow.basedir), os.path.realpath(os.getcwd())}
-_here -= {
-    os.path.realpath(p)
-    for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
-    if os.path.isabs(p)
-}
-sys.path[:] = [p for p in sys.path if p and os.path.realpath(p) not in _here]
+
+def keep_project_off_path():
+    """Take the project's folders off Python's path: the Snakefile's and the working directory, workflow/ (each
+    ``include:`` puts its file's folder first), .snakemake/ and relative entries, unless PYTHONPATH names them
+    (absolute). A package planted there (./sklearn/, workflow/rules/bsrbench/) would shadow an installed one and
+    run when imported. Every rule file calls this first; jobs run with PYTHONSAFEPATH=1 (below)."""
+    here = {os.path.realpath(workflow.basedir), os.path.realpath(os.getcwd())}
+    under = [os.path.join(d, sub) for d in here for sub in ("workflow", ".snakemake")]
+    kept = {
+        os.path.realpath(p)
+        for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+        if os.path.isabs(p)
+    }
+
+    def planted(p):
+        r = os.path.realpath(p) if os.path.isabs(p) else None
+        if r in kept:
+            return False
+        return r is None or r in here or any(r == u or r.startswith(u + os.sep) for u in under)
+
+    sys.path[:] = [p for p in sys.path if not planted(p)]
+
+
+keep_project_off_path()
+# Jobs (shell, script: and the job server) do not put a script's folder or the working directory on the path.
+os.environ["PYTHONSAFEPATH"] = "1"
 
 min_version("9.0")
 

@@ -368,8 +368,18 @@ def copy_tree(work):
     return work
 
 
-# Packages planted in the project folder, each writing a marker file if imported (test_planted_packages_never_run).
-PLANTED = ("bsrbench", "numpy", "sklearn")
+# Modules planted in the project's folders, each writing a marker file if imported (test_planted_packages_never_run):
+# packages shadowing the project's and its dependencies, and standard-library names Snakemake and the jobs import.
+PLANTED = (
+    "bsrbench/__init__.py",
+    "numpy/__init__.py",
+    "sklearn/__init__.py",
+    "workflow/rules/bsrbench/__init__.py",
+    "workflow/rules/sklearn/__init__.py",
+    "workflow/rules/difflib.py",
+    "workflow/scripts/yaml/__init__.py",
+    ".snakemake/scripts/pickle.py",
+)
 
 
 @pytest.fixture(scope="module")
@@ -380,8 +390,9 @@ def ci_run(tmp_path_factory):
     markers = work.parent / "markers"
     markers.mkdir()
     for name in PLANTED:
-        (work / name).mkdir()
-        (work / name / "__init__.py").write_text(f"open({str(markers / name)!r}, 'w').close()\n")
+        (work / name).parent.mkdir(parents=True, exist_ok=True)
+        marker = markers / name.replace("/", "_")
+        (work / name).write_text(f"open({str(marker)!r}, 'w').close()\n")
     res = smk(
         "reports/ci/report.pdf",
         "--cores",
@@ -396,11 +407,12 @@ def ci_run(tmp_path_factory):
 
 
 def test_planted_packages_never_run(ci_run):
-    """Snakemake puts the Snakefile's folder first on Python's path and ``python -m`` the working directory: the
-    Snakefile takes them off and jobs run ``python -P``, so a package planted there neither shadows the installed
-    one nor runs, in the Snakefile, the job server or a job run in-process."""
+    """Snakemake puts the Snakefile's folder and each included file's first on Python's path, ``python -m`` the
+    working directory and ``python script.py`` the script's: the Snakefile and every rule file take the project's
+    folders off and jobs run with PYTHONSAFEPATH, so a module planted there neither shadows the installed one nor
+    runs, in the Snakefile, the job server, a fit job or a ``script:`` job."""
     assert sorted(p.name for p in (ci_run.parent / "markers").iterdir()) == []
-    assert sorted(p.name for p in ci_run.iterdir() if p.name in PLANTED) == sorted(PLANTED)
+    assert all((ci_run / name).is_file() for name in PLANTED)
 
 
 def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):

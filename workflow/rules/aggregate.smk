@@ -1,4 +1,5 @@
 # One aggregate table of every fit job: the only input of every table, plot and finding.
+keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
 
 
 rule aggregate:

@@ -1,4 +1,5 @@
 # The study's configuration and the rules' input functions.
+keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
 import os
 import sys
 from pathlib import Path

@@ -1,4 +1,5 @@
 # Data sets of config/datasets.yaml (bsrbench.config).
+keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
 from pathlib import Path
 
 from bsrbench.config import load_datasets, or_exit

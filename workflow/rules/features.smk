@@ -1,4 +1,5 @@
 # Features: codebook, rendered mocap features, checked .mat files.
+keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
 
 
 rule features_codebook:

@@ -1,4 +1,5 @@
 # Motion capture: CMU downloads and pose extraction.
+keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
 
 
 rule download_cmu_asf:
