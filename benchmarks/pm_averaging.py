@@ -99,17 +99,16 @@ def _fit_long(r, chain):
 
     r = SimpleNamespace(**r)
     path = _chain_dir(r, True) / f"chain{chain}.npz"
-    if not path.exists():
-        params = {**json.loads(r.params), **LONG}
-        out = run_chain(
-            _spec(r),
-            _features(r.source, r.activity),
-            estimator=r.estimator,
-            params=params,
-            chain=chain,
-        )
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_arrays(path, out)
+    params = {**json.loads(r.params), **LONG}
+    made_with = json.dumps({"estimator": r.estimator, "params": params}, sort_keys=True)
+    if path.exists() and str(read_npz(path).get("made_with", "")) == made_with:
+        return path  # fitted before with these settings: reused (a changed setting refits)
+    out = run_chain(
+        _spec(r), _features(r.source, r.activity), estimator=r.estimator, params=params, chain=chain
+    )
+    out["made_with"] = np.array(made_with)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_arrays(path, out)
     return path
 
 
@@ -118,6 +117,18 @@ def fit_long(fair):
     os.environ["NUMBA_NUM_THREADS"] = "1"
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ[var] = "1"
+    missing = sorted(
+        {
+            str(ROOT / "results" / "features" / r.source / f"{r.activity}.npz")
+            for r in fair.itertuples()
+        }
+        - {str(p) for p in (ROOT / "results" / "features").glob("*/*.npz")}
+    )
+    if missing:
+        raise SystemExit(
+            f"{missing[0]}: features file does not exist ({len(missing)} missing); expected the features of the "
+            "fair-budget study: run it first (config/paper-pmfair.yaml's header)"
+        )
     tasks = [(r, c) for r in fair.to_dict("records") for c in range(int(r["n_chains"]))]
     with ProcessPoolExecutor(max_workers=2, mp_context=get_context("spawn")) as pool:
         for k, path in enumerate(pool.map(_fit_long, *zip(*tasks)), 1):
@@ -133,7 +144,11 @@ def split_errors(fair, paper, long=False):
         d = _chain_dir(r, long)
         chains = [read_npz(p) for p in sorted(d.glob("chain*.npz"))]
         if len(chains) != int(r.n_chains):
-            raise SystemExit(f"{d}: {len(chains)} chain files, the row says {r.n_chains}")
+            raise SystemExit(
+                f"{d}: {len(chains)} chain files, the published row says {r.n_chains}; expected the chain files "
+                f"of {'this script --long' if long else 'the fair-budget study (config/paper-pmfair.yaml)'}: "
+                "run it first"
+            )
         feats = _features(r.source, r.activity)
         transform = get_pose_transform(r.pose_transform, column=feats.get("heading_column", 2))
         Y = feats["Y"][chains[0]["test"]]
@@ -143,6 +158,8 @@ def split_errors(fair, paper, long=False):
             raise SystemExit(f"{d}: pooled error {pooled} is not the row's {r.error}")
         sr = paper[
             (paper["method"] == "SR")
+            & (paper["protocol"] == r.protocol)
+            & (paper["source"] == r.source)
             & (paper["activity"] == r.activity)
             & (paper["n_train"] == r.n_train)
             & (paper["seed"] == r.seed)
@@ -243,14 +260,25 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--long", action="store_true", help="fit and use chains 10 times longer (LONG)")
     ap.add_argument("--n", type=int, nargs="+", help="--long: training sizes (default: 30 200)")
-    ap.add_argument("--seeds", type=int, default=5, help="--long: seeds 0..SEEDS-1 (default 5)")
+    ap.add_argument("--seeds", type=int, help="--long: seeds 0..SEEDS-1 (default 5)")
     ap.add_argument("--write", action="store_true", help="write the table to benchmarks/tables/")
     args = ap.parse_args(argv)
     fair = read_results(PUBLISHED / "paper-pmfair.csv")
     fair = fair[fair["source"] == "hsc"]
     paper = read_results(PUBLISHED / "paper.csv")
+    if not args.long and (args.n is not None or args.seeds is not None):
+        ap.error(
+            "--n and --seeds choose the splits of --long; the study's chains are read for every split"
+        )
     if args.long:
-        fair = fair[fair["n_train"].isin(args.n or [30, 200]) & (fair["seed"] < args.seeds)]
+        sizes, seeds = args.n or [30, 200], 5 if args.seeds is None else args.seeds
+        fair = fair[fair["n_train"].isin(sizes) & (fair["seed"] < seeds)]
+        if fair.empty:
+            ap.error(
+                f"--n {' '.join(map(str, sizes))} --seeds {seeds} selects no split of the fair-budget table; "
+                f"expected N among {sorted(set(read_results(PUBLISHED / 'paper-pmfair.csv')['n_train']))} and "
+                "--seeds of at least 1"
+            )
         fit_long(fair)
     e = split_errors(fair, paper, long=args.long)
     conv = e[e["r_hat"] <= 1.01]
