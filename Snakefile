@@ -4,32 +4,14 @@ import sys
 
 from snakemake.utils import min_version
 
+# Snakemake put this folder first on Python's path: off before the project is imported (a package planted here
+# would shadow it), then the project's other folders (bsrbench.pythonpath).
+sys.path[:] = [
+    p for p in sys.path if os.path.realpath(p or ".") != os.path.realpath(workflow.basedir)
+]
+from bsrbench.pythonpath import keep_project_off_path
 
-def keep_project_off_path():
-    """Take the project's folders off Python's path: the Snakefile's and the working directory, workflow/ (each
-    ``include:`` puts its file's folder first), .snakemake/ and relative entries, unless PYTHONPATH names them
-    (absolute). A package planted there (./sklearn/, workflow/rules/bsrbench/) would shadow an installed one and
-    run when imported. Every rule file calls this first; jobs run with PYTHONSAFEPATH=1 (below)."""
-    here = {os.path.realpath(workflow.basedir), os.path.realpath(os.getcwd())}
-    under = [os.path.join(d, sub) for d in here for sub in ("workflow", ".snakemake")]
-    kept = {
-        os.path.realpath(p)
-        for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
-        if os.path.isabs(p)
-    }
-
-    def planted(p):
-        r = os.path.realpath(p) if os.path.isabs(p) else None
-        if r in kept:
-            return False
-        return r is None or r in here or any(r == u or r.startswith(u + os.sep) for u in under)
-
-    sys.path[:] = [p for p in sys.path if not planted(p)]
-
-
-keep_project_off_path()
-# Jobs (shell, script: and the job server) do not put a script's folder or the working directory on the path.
-os.environ["PYTHONSAFEPATH"] = "1"
+keep_project_off_path(workflow.basedir)
 
 min_version("9.0")
 

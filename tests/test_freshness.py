@@ -191,8 +191,9 @@ def test_merge_keeps_the_newest_row_and_refuses_equal_age_conflicts(study, tmp_p
     assert "different rows of equal age" in err and "a.csv" in err and "b.csv" in err
     # identical rows in two parts are one row
     a.to_csv(pb, index=False)
-    assert main(["merge", str(pa), str(pb), str(dest)]) == 0
-    assert len(pd.read_csv(dest)) == 3
+    fresh = tmp_path / "published" / "ci-a.csv"
+    assert main(["merge", str(pa), str(pb), str(fresh)]) == 0
+    assert len(pd.read_csv(fresh)) == 3
 
 
 def test_check_reads_every_published_table_of_the_project(capsys):
@@ -943,6 +944,18 @@ def test_merge_refuses_a_read_only_destination_before_writing(study, tmp_path, c
             "'yesterday'",
             "an ISO 8601 date-time (e.g. 2024-05-01T12:00:00+00:00: when the row was written)",
         ),
+        (  # pandas reads 'now' and 'today' as dates: such a row would be the newest at every merge
+            "written_at",
+            "now",
+            "'now'",
+            "an ISO 8601 date-time (e.g. 2024-05-01T12:00:00+00:00: when the row was written)",
+        ),
+        (
+            "written_at",
+            "today",
+            "'today'",
+            "an ISO 8601 date-time (e.g. 2024-05-01T12:00:00+00:00: when the row was written)",
+        ),
     ],
 )
 def test_merge_refuses_a_part_row_with_a_bad_error_or_written_at(
@@ -971,3 +984,28 @@ def test_merge_takes_errors_of_0_and_180_degrees_and_a_missing_written_at(study,
     dest = tmp_path / "merged.csv"
     assert main(["merge", str(part), str(dest)]) == 0
     assert len(pd.read_csv(dest)) == len(df)
+
+
+def test_merge_refuses_to_drop_the_jobs_of_an_existing_destination(study, tmp_path, capsys):
+    """Merging one part onto an existing table of the same study that is not among the parts would replace its rows
+    by the part's: refused, naming the table and a job it would lose; with the table among the parts it grows, and
+    parts holding all its jobs (a regeneration) replace it."""
+    df = pd.read_csv(study)
+    whole = _write_part(df, tmp_path / "whole.csv")
+    part = _write_part(df.iloc[:3], tmp_path / "part.csv")
+    before = whole.read_bytes()
+    assert main(["merge", str(part), str(whole)]) == 2
+    line = _one_error_line(capsys)
+    assert line.startswith(
+        f"error: {whole}: {len(df) - 3} of its {len(df)} rows are jobs that no part holds (e.g. "
+    )
+    assert line.endswith(
+        f"and the merge would drop them; expected {whole} among the parts (a table grows by a new part) or parts "
+        "that hold all its jobs (a regeneration)"
+    )
+    assert whole.read_bytes() == before
+    assert main(["merge", str(part), str(whole), str(whole)]) == 0  # grows (here: by rows it holds)
+    assert len(pd.read_csv(whole)) == len(df)
+    rest = _write_part(df.iloc[3:], tmp_path / "rest.csv")
+    assert main(["merge", str(part), str(rest), str(whole)]) == 0  # a regeneration in parts
+    assert len(pd.read_csv(whole)) == len(df)

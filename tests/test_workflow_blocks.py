@@ -20,10 +20,11 @@ def seed_jobs(out):
     which are left out here for both."""
     found = {}
     for line in out.splitlines():
-        if "python -m bsrbench.jobserver job" not in line:
+        if "-m bsrbench.jobserver job" not in line:
             continue
-        args = shlex.split(line[line.index("python -m") :])
-        target, spec = args[4], json.loads(args[args.index("--log") + 2])
+        args = shlex.split(line[line.index("python -") :])
+        target = args[args.index("bsrbench.jobserver") + 2]
+        spec = json.loads(args[args.index("--log") + 2])
         settings = args[args.index("--settings") + 1]
         for one in spec.get("block", [spec]):
             one["input"].pop("code", None)

@@ -1634,8 +1634,11 @@ def configure_shell_jobs(use_server=True):
     """Prepare this process's environment, which Snakemake's shell jobs inherit, for ``python -m bsrbench.jobserver
     job``: this interpreter's directory first on ``PATH`` (so that ``python`` is the interpreter running Snakemake;
     a conda deployment activates its own environment inside the job, which then comes first), and
-    :data:`USE_SERVER_VAR` set from the config key ``job_server``."""
+    :data:`USE_SERVER_VAR` set from the config key ``job_server``; ``PYTHONSAFEPATH=1``, so that no job's Python
+    (shell, ``script:`` or this server) puts the working directory or a script's folder on its path
+    (:mod:`bsrbench.pythonpath`)."""
     os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+    os.environ["PYTHONSAFEPATH"] = "1"
     os.environ[USE_SERVER_VAR] = "1" if use_server else "0"
 
 

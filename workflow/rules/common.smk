@@ -1,5 +1,8 @@
 # The study's configuration and the rules' input functions.
-keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
+# include: put this file's folder first on Python's path (bsrbench.pythonpath)
+from bsrbench.pythonpath import keep_project_off_path
+
+keep_project_off_path(workflow.basedir)
 import os
 import sys
 from pathlib import Path

@@ -1,5 +1,8 @@
 # Data sets of config/datasets.yaml (bsrbench.config).
-keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
+# include: put this file's folder first on Python's path (bsrbench.pythonpath)
+from bsrbench.pythonpath import keep_project_off_path
+
+keep_project_off_path(workflow.basedir)
 from pathlib import Path
 
 from bsrbench.config import load_datasets, or_exit

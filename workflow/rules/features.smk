@@ -1,5 +1,8 @@
 # Features: codebook, rendered mocap features, checked .mat files.
-keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
+# include: put this file's folder first on Python's path (bsrbench.pythonpath)
+from bsrbench.pythonpath import keep_project_off_path
+
+keep_project_off_path(workflow.basedir)
 
 
 rule features_codebook:

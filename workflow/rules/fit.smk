@@ -1,7 +1,10 @@
 # Fit jobs: one per (protocol, source, activity, method, n_train) and block of seeds (config key seeds_per_job), one
 # per seed with seeds_per_job 1; CV jobs choose hyper-parameters. The files stay one per seed either way.
 # Jobs run in bsrbench.jobs, through the job server; a block's seeds one after the other (bsrbench.jobserver).
-keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
+# include: put this file's folder first on Python's path (bsrbench.pythonpath)
+from bsrbench.pythonpath import keep_project_off_path
+
+keep_project_off_path(workflow.basedir)
 
 JOB = (
     "python -P -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "

@@ -1,7 +1,10 @@
 # Tables, figures, generated text and the PDF report, all from {RESULTS}/aggregate/results.csv.
 # Every output is under reports/{study} (REPORTS): studies of different configurations never share a report file,
 # so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
-keep_project_off_path()  # include: put this file's folder first on Python's path (Snakefile)
+# include: put this file's folder first on Python's path (bsrbench.pythonpath)
+from bsrbench.pythonpath import keep_project_off_path
+
+keep_project_off_path(workflow.basedir)
 
 
 from bsrbench.reporting.tables import error_tables, other_activities

@@ -862,7 +862,11 @@ def _check_part_values(part, df):
         if v is None or (isinstance(v, float) and np.isnan(v)):
             continue
         try:
-            ok = isinstance(v, str) and not pd.isna(pd.to_datetime(v, utc=True, format="ISO8601"))
+            ok = (
+                isinstance(v, str)
+                and re.match(r"\s*\d{4}", v) is not None  # pandas also takes 'now' and 'today'
+                and not pd.isna(pd.to_datetime(v, utc=True, format="ISO8601"))
+            )
         except (ValueError, TypeError, OverflowError):
             ok = False
         if not ok:
@@ -890,6 +894,23 @@ def _check_destination(dest, files):
                 "expected a new destination or a table of the parts' study (the merge would replace its rows "
                 "by the parts')",
             )
+
+
+def _check_nothing_dropped(dest, merged):
+    """InputError naming ``dest`` (an existing table that is not among the parts) if it holds a job that the
+    ``merged`` rows lack: the merge would drop those rows."""
+    try:
+        old = pd.read_csv(dest, usecols=KEY_COLUMNS, dtype=str)
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise DataFileError(dest, f"cannot be read to compare with the parts ({exc})") from None
+    keys = set(merged[KEY_COLUMNS].astype(str).itertuples(index=False, name=None))
+    lost = [k for k in old.itertuples(index=False, name=None) if k not in keys]
+    if lost:
+        raise InputError(
+            f"{dest}: {len(lost)} of its {len(old)} rows are jobs that no part holds (e.g. "
+            f"{dict(zip(KEY_COLUMNS, lost[0]))}), and the merge would drop them; expected {dest} among the parts "
+            "(a table grows by a new part) or parts that hold all its jobs (a regeneration)"
+        )
 
 
 def merge(parts, dest):
@@ -934,6 +955,8 @@ def merge(parts, dest):
             )
     df = df.drop_duplicates(KEY_COLUMNS, keep="last").drop(columns=["_part", "_age"])
     df = df.sort_values(KEY_COLUMNS, kind="mergesort").reset_index(drop=True)
+    if Path(dest).is_file() and Path(dest).resolve() not in seen:
+        _check_nothing_dropped(dest, df)
     if not Path(dest).parent.is_dir():
         raise DataFileError(dest, "cannot write the merged table: its folder does not exist")
     prov = table_provenance(dest, df, files, records=provs)
