@@ -4,11 +4,10 @@ import sys
 
 from snakemake.utils import min_version
 
-# Snakemake put this folder first on Python's path: off before the project is imported (a package planted here
-# would shadow it), then the project's other folders (bsrbench.pythonpath).
-sys.path[:] = [
-    p for p in sys.path if os.path.realpath(p or ".") != os.path.realpath(workflow.basedir)
-]
+# Snakemake put this folder first on Python's path (unless PYTHONPATH has it): off before the project is imported
+# (a package planted here would shadow it), then the project's other folders (bsrbench.pythonpath).
+if sys.path and os.path.realpath(sys.path[0]) == os.path.realpath(workflow.basedir):
+    del sys.path[0]
 from bsrbench.pythonpath import keep_project_off_path
 
 keep_project_off_path(workflow.basedir)
