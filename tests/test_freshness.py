@@ -1009,3 +1009,15 @@ def test_merge_refuses_to_drop_the_jobs_of_an_existing_destination(study, tmp_pa
     rest = _write_part(df.iloc[3:], tmp_path / "rest.csv")
     assert main(["merge", str(part), str(rest), str(whole)]) == 0  # a regeneration in parts
     assert len(pd.read_csv(whole)) == len(df)
+    # the same jobs with N written as a float are the same jobs
+    floats = pd.read_csv(whole)
+    floats["n_train"] = floats["n_train"].astype(float)
+    floats.to_csv(whole, index=False)
+    assert main(["merge", str(part), str(rest), str(whole)]) == 0
+    # a destination without a key column cannot be compared: refused, naming it
+    pd.read_csv(whole).drop(columns=["seed"]).to_csv(whole, index=False)
+    capsys.readouterr()
+    assert main(["merge", str(part), str(rest), str(whole)]) == 2
+    assert _one_error_line(capsys).startswith(
+        f"error: {whole}: lacks the key columns ['seed']; expected"
+    )

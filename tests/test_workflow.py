@@ -415,6 +415,31 @@ def test_planted_packages_never_run(ci_run):
     assert all((ci_run / name).is_file() for name in PLANTED)
 
 
+def test_rule_files_included_by_a_snakefile_of_ones_own_run_no_planted_module(tmp_path):
+    """Each rule file takes its own folder off Python's path before it imports anything, so a Snakefile elsewhere
+    that includes them (a researcher's own) does not import modules planted beside them."""
+    (tmp_path / "project").mkdir()
+    work = copy_tree(tmp_path / "project")
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    for name in ("bsrbench/__init__.py", "sklearn/__init__.py", "difflib.py"):
+        planted = work / "workflow" / "rules" / name
+        planted.parent.mkdir(parents=True, exist_ok=True)
+        planted.write_text(f"open({str(markers / name.replace('/', '_'))!r}, 'w').close()\n")
+    own = tmp_path / "own"
+    shutil.copytree(work / "config", own / "config")
+    (own / "resources").symlink_to(ROOT / "resources")
+    rules = work / "workflow" / "rules"
+    (own / "Snakefile").write_text(
+        'configfile: "config/datasets.yaml"\nconfigfile: "config/config.yaml"\n\n\n'
+        f'include: "{rules / "datasets.smk"}"\ninclude: "{rules / "common.smk"}"\n\n\n'
+        'rule mine:\n    output:\n        "mine.txt",\n    shell:\n        "touch {output}"\n'
+    )
+    res = smk("-n", "--cores", "1", "mine", cwd=own)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert sorted(p.name for p in markers.iterdir()) == []
+
+
 def test_ci_run_writes_every_result_and_a_tidy_aggregate(ci_run):
     import pandas as pd
 

@@ -2,9 +2,10 @@
 
 Snakemake puts the Snakefile's folder and each included rule file's folder first on ``sys.path`` (and ``python -m``
 the working directory): a package planted there (``./sklearn/``, ``workflow/rules/bsrbench/``) would shadow an
-installed one and run when imported. The Snakefile and every rule file call :func:`keep_project_off_path` first;
-jobs, ``script:`` jobs and the job server run with ``PYTHONSAFEPATH=1``
-(:func:`bsrbench.jobserver.configure_shell_jobs`).
+installed one and run when imported. The Snakefile takes its own folder off and calls :func:`keep_project_off_path`
+before it includes anything, and every rule file takes its own folder off before it imports anything (so that a
+Snakefile of one's own may include them too); jobs, ``script:`` jobs and the job server run with
+``PYTHONSAFEPATH=1`` (:func:`bsrbench.jobserver.configure_shell_jobs`).
 """
 
 import os

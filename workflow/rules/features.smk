@@ -1,8 +1,12 @@
 # Features: codebook, rendered mocap features, checked .mat files.
-# include: put this file's folder first on Python's path (bsrbench.pythonpath)
-from bsrbench.pythonpath import keep_project_off_path
+# include: put this file's folder first on Python's path: off before anything is imported (bsrbench.pythonpath)
+import os
+import sys
 
-keep_project_off_path(workflow.basedir)
+if os.path.realpath(sys.path[0]) == os.path.realpath(
+    workflow.current_basedir.get_path_or_uri(secret_free=False)
+):
+    del sys.path[0]
 
 
 rule features_codebook:

@@ -1,10 +1,14 @@
 # Fit jobs: one per (protocol, source, activity, method, n_train) and block of seeds (config key seeds_per_job), one
 # per seed with seeds_per_job 1; CV jobs choose hyper-parameters. The files stay one per seed either way.
 # Jobs run in bsrbench.jobs, through the job server; a block's seeds one after the other (bsrbench.jobserver).
-# include: put this file's folder first on Python's path (bsrbench.pythonpath)
-from bsrbench.pythonpath import keep_project_off_path
+# include: put this file's folder first on Python's path: off before anything is imported (bsrbench.pythonpath)
+import os
+import sys
 
-keep_project_off_path(workflow.basedir)
+if os.path.realpath(sys.path[0]) == os.path.realpath(
+    workflow.current_basedir.get_path_or_uri(secret_free=False)
+):
+    del sys.path[0]
 
 JOB = (
     "python -P -m bsrbench.jobserver job {target} --threads {{threads}} --log {{log:q}} {{params.job:q}} "

@@ -1,10 +1,14 @@
 # Tables, figures, generated text and the PDF report, all from {RESULTS}/aggregate/results.csv.
 # Every output is under reports/{study} (REPORTS): studies of different configurations never share a report file,
 # so that each one's report (and `snakemake --report`) shows that study only, and two studies can run at once.
-# include: put this file's folder first on Python's path (bsrbench.pythonpath)
-from bsrbench.pythonpath import keep_project_off_path
+# include: put this file's folder first on Python's path: off before anything is imported (bsrbench.pythonpath)
+import os
+import sys
 
-keep_project_off_path(workflow.basedir)
+if os.path.realpath(sys.path[0]) == os.path.realpath(
+    workflow.current_basedir.get_path_or_uri(secret_free=False)
+):
+    del sys.path[0]
 
 
 from bsrbench.reporting.tables import error_tables, other_activities

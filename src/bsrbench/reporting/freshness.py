@@ -896,20 +896,39 @@ def _check_destination(dest, files):
             )
 
 
+def _job_keys(df):
+    """The job keys of ``df``'s rows, numbers compared as numbers (an N written 30.0 is the job of N 30)."""
+    cols = [
+        pd.to_numeric(df[c], errors="coerce").astype(float)
+        if c in ("n_train", "seed")
+        else df[c].astype(str)
+        for c in KEY_COLUMNS
+    ]
+    return list(zip(*cols))
+
+
 def _check_nothing_dropped(dest, merged):
     """InputError naming ``dest`` (an existing table that is not among the parts) if it holds a job that the
     ``merged`` rows lack: the merge would drop those rows."""
     try:
-        old = pd.read_csv(dest, usecols=KEY_COLUMNS, dtype=str)
+        old = pd.read_csv(dest)
     except (OSError, ValueError, pd.errors.ParserError) as exc:
         raise DataFileError(dest, f"cannot be read to compare with the parts ({exc})") from None
-    keys = set(merged[KEY_COLUMNS].astype(str).itertuples(index=False, name=None))
-    lost = [k for k in old.itertuples(index=False, name=None) if k not in keys]
+    missing = [c for c in KEY_COLUMNS if c not in old.columns]
+    if missing:
+        raise DataFileError(
+            dest,
+            f"lacks the key columns {missing}; expected a published table (columns {KEY_COLUMNS}) to compare "
+            "with the parts",
+        )
+    keys = set(_job_keys(merged))
+    lost = [i for i, k in enumerate(_job_keys(old)) if k not in keys]
     if lost:
+        example = {c: _plain(old[c].iloc[lost[0]]) for c in KEY_COLUMNS}
         raise InputError(
-            f"{dest}: {len(lost)} of its {len(old)} rows are jobs that no part holds (e.g. "
-            f"{dict(zip(KEY_COLUMNS, lost[0]))}), and the merge would drop them; expected {dest} among the parts "
-            "(a table grows by a new part) or parts that hold all its jobs (a regeneration)"
+            f"{dest}: {len(lost)} of its {len(old)} rows are jobs that no part holds (e.g. {example}), and the "
+            f"merge would drop them; expected {dest} among the parts (a table grows by a new part) or parts that "
+            "hold all its jobs (a regeneration)"
         )
 
 
