@@ -1018,6 +1018,6 @@ def test_merge_refuses_to_drop_the_jobs_of_an_existing_destination(study, tmp_pa
     pd.read_csv(whole).drop(columns=["seed"]).to_csv(whole, index=False)
     capsys.readouterr()
     assert main(["merge", str(part), str(rest), str(whole)]) == 2
-    assert _one_error_line(capsys).startswith(
-        f"error: {whole}: lacks the key columns ['seed']; expected"
+    assert _one_error_line(capsys) == (
+        f"error: {whole}: missing columns ['seed']; expected a table of result rows"
     )

@@ -910,17 +910,7 @@ def _job_keys(df):
 def _check_nothing_dropped(dest, merged):
     """InputError naming ``dest`` (an existing table that is not among the parts) if it holds a job that the
     ``merged`` rows lack: the merge would drop those rows."""
-    try:
-        old = pd.read_csv(dest)
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
-        raise DataFileError(dest, f"cannot be read to compare with the parts ({exc})") from None
-    missing = [c for c in KEY_COLUMNS if c not in old.columns]
-    if missing:
-        raise DataFileError(
-            dest,
-            f"lacks the key columns {missing}; expected a published table (columns {KEY_COLUMNS}) to compare "
-            "with the parts",
-        )
+    old = read_table(dest)
     keys = set(_job_keys(merged))
     lost = [i for i, k in enumerate(_job_keys(old)) if k not in keys]
     if lost:
