@@ -164,13 +164,13 @@ def split_errors(fair, paper, long=False):
             & (paper["n_train"] == r.n_train)
             & (paper["seed"] == r.seed)
         ]["error"]
-        rows = rows_for(np.size(chains[0]["draw_error"]), len(chains))
         out.append(
             {
                 "activity": r.activity,
                 "n_train": r.n_train,
                 "seed": r.seed,
                 "draws": np.size(chains[0]["draw_error"]),
+                "chains": len(chains),
                 "1 chain x 1 draw": float(np.mean([c["draw_error"] for c in chains])),
                 "1 chain x D draws": float(
                     np.mean([mean_angle_error(Y, transform.inverse(m)) for m in means])
@@ -180,7 +180,6 @@ def split_errors(fair, paper, long=False):
                 "r_hat": convergence_summary(chains)["r_hat_test_error"]
                 if long
                 else r.r_hat_test_error,
-                "labels": rows,
                 "study_error": r.error,
                 "study_r_hat": r.r_hat_test_error,
             }
@@ -202,14 +201,14 @@ def _test(a, b):
 
 
 def table(e, title):
-    labels = e["labels"].iloc[0]
-    draws, chains = labels[1].split(" x ")[1], labels[2].split(" x ")[0]
+    draws, chains = int(e["draws"].iloc[0]), int(e["chains"].iloc[0])
+    labels = rows_for(draws, chains)
     lines = [
         f"{title}",
         "",
         "| N | splits | "
         + " | ".join(labels)
-        + f" | {draws} - 1 draw (t p, W p) | {chains} - 1 chain (t p, W p) |",
+        + f" | {draws} draws - 1 draw (t p, W p) | {chains} chains - 1 chain (t p, W p) |",
         "|---:|---:|" + "---:|" * (len(labels) + 2),
     ]
     for n, g in e.groupby("n_train"):
